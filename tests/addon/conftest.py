@@ -1,0 +1,108 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Fixtures for add-on tests, run under PyPI ``bpy``.
+
+Fixtures
+--------
+addon
+    The extension as a user gets it: the zip built from this checkout by
+    ``tools/build_extension.py``, installed with Blender's own installer into
+    a private user-resources folder and enabled; the fixture returns the
+    module ``bl_ext.user_default.shapedeform`` and makes sure it is enabled
+    when the test starts. Use it in every test that needs the add-on.
+extension_zip
+    Path of the zip for this machine's platform (built once per session).
+user_resources
+    The private ``BLENDER_USER_RESOURCES`` folder of the session.
+empty_scene (autouse)
+    Every test starts from Blender's empty factory scene.
+
+Blender reads ``BLENDER_USER_RESOURCES`` while ``bpy`` loads (for instance to
+put the extensions' wheel folder on ``sys.path``), so it is set here, when
+pytest imports this file and before anything imports ``bpy``. Tests must not
+import ``bpy`` from outside ``tests/addon``.
+"""
+
+import importlib.util
+import os
+import platform
+import shutil
+import sys
+import tempfile
+
+import pytest
+
+if "bpy" in sys.modules:
+    raise RuntimeError("bpy was imported before tests/addon/conftest.py could set BLENDER_USER_RESOURCES")
+
+USER_RESOURCES = tempfile.mkdtemp(prefix="shapedeform-user-resources-")
+os.environ["BLENDER_USER_RESOURCES"] = USER_RESOURCES
+
+import bpy  # noqa: E402  (needs the environment above)
+import addon_utils  # noqa: E402  (on sys.path once bpy is loaded)
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+EXTENSION_ID = "shapedeform"
+ADDON_MODULE = f"bl_ext.user_default.{EXTENSION_ID}"
+
+
+def load_build_tool():
+    """Import ``tools/build_extension.py`` (``tools`` is not a package)."""
+    spec = importlib.util.spec_from_file_location("build_extension", os.path.join(ROOT, "tools", "build_extension.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def this_platform():
+    """Blender's name for this machine's platform, e.g. ``linux-x64``."""
+    system = {"win32": "windows", "darwin": "macos"}.get(sys.platform, sys.platform)
+    machine = {"x86_64": "x64", "amd64": "x64", "aarch64": "arm64"}.get(platform.machine().lower(),
+                                                                         platform.machine().lower())
+    return f"{system}-{machine}"
+
+
+def fail_on_error(ex):
+    """``handle_error`` for addon_utils: raise instead of printing and going on."""
+    raise ex
+
+
+@pytest.fixture(scope="session")
+def user_resources():
+    """The session's private user-resources folder (removed at the end)."""
+    yield USER_RESOURCES
+    shutil.rmtree(USER_RESOURCES, ignore_errors=True)
+
+
+@pytest.fixture(scope="session")
+def extension_zip(tmp_path_factory):
+    """Build this platform's extension zip once per session and return its path."""
+    out = tmp_path_factory.mktemp("extension")
+    return load_build_tool().build([this_platform()], str(out))[this_platform()]
+
+
+@pytest.fixture(scope="session")
+def installed_extension(user_resources, extension_zip):
+    """Install the zip like a user (Blender's installer) and enable it, once."""
+    assert bpy.utils.user_resource("EXTENSIONS").startswith(user_resources)
+    result = bpy.ops.extensions.package_install_files(
+        filepath=extension_zip, repo="user_default", enable_on_install=False)
+    assert result == {"FINISHED"}
+    module = addon_utils.enable(ADDON_MODULE, default_set=True, handle_error=fail_on_error)
+    assert module is not None, f"could not enable {ADDON_MODULE}"
+    yield module
+    addon_utils.disable(ADDON_MODULE, default_set=True)
+
+
+@pytest.fixture
+def addon(installed_extension):
+    """The installed extension's module, enabled (re-enabled if a test disabled it)."""
+    if not addon_utils.check(ADDON_MODULE)[1]:
+        addon_utils.enable(ADDON_MODULE, default_set=True, handle_error=fail_on_error)
+    return sys.modules[ADDON_MODULE]
+
+
+@pytest.fixture(autouse=True)
+def empty_scene():
+    """Start each test from the empty factory scene (enabled add-ons stay enabled)."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    yield

@@ -1,0 +1,94 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""House rules of the repository, checked without Blender.
+
+- ``solver/`` stays Blender-free.
+- Add-on code follows the extension rules: no ``bl_info``, no ``sys.path``
+  edits, the extension's own packages imported relatively.
+- The manifest ships exactly the wheels pinned in ``requirements-extension.txt``.
+"""
+
+import ast
+import importlib.util
+import os
+import pathlib
+import tomllib
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+BLENDER_MODULES = {"bpy", "bmesh", "mathutils", "bpy_extras"}
+OWN_PACKAGES = {"solver", "shapedeform_addon"}
+
+
+def python_files(*parts):
+    return sorted(p for part in parts for p in (ROOT / part).rglob("*.py") if "__pycache__" not in p.parts)
+
+
+def addon_files():
+    return [ROOT / "__init__.py", *python_files("shapedeform_addon")]
+
+
+def imported_modules(tree):
+    """Yield ``(top-level module name, relative level)`` for every import in ``tree``."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield alias.name.split(".")[0], 0
+        elif isinstance(node, ast.ImportFrom):
+            yield (node.module or "").split(".")[0], node.level
+
+
+def parse(path):
+    return ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+
+
+def test_solver_does_not_import_blender():
+    offenders = [f"{p.relative_to(ROOT)}: {name}"
+                 for p in python_files("solver")
+                 for name, level in imported_modules(parse(p))
+                 if level == 0 and name in BLENDER_MODULES]
+    assert offenders == []
+
+
+def test_addon_code_has_no_bl_info():
+    offenders = [str(p.relative_to(ROOT)) for p in addon_files()
+                 for node in ast.walk(parse(p))
+                 if isinstance(node, ast.Name) and node.id == "bl_info"]
+    assert offenders == []
+
+
+def test_addon_code_does_not_touch_sys_path():
+    offenders = [f"{p.relative_to(ROOT)}:{node.lineno}" for p in addon_files()
+                 for node in ast.walk(parse(p))
+                 if isinstance(node, ast.Attribute) and node.attr == "path"
+                 and isinstance(node.value, ast.Name) and node.value.id == "sys"]
+    assert offenders == []
+
+
+def test_addon_imports_own_packages_relatively():
+    offenders = [f"{p.relative_to(ROOT)}: {name}" for p in addon_files()
+                 for name, level in imported_modules(parse(p))
+                 if level == 0 and name in OWN_PACKAGES]
+    assert offenders == []
+
+
+def load_build_tool():
+    spec = importlib.util.spec_from_file_location("build_extension", ROOT / "tools" / "build_extension.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_manifest_wheels_match_the_pins():
+    build = load_build_tool()
+    pins = build.read_pins()
+    manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text(encoding="utf-8"))
+    shipped = {}
+    for wheel in manifest["wheels"]:
+        name, version, python_tag, platforms = build.parse_wheel_name(wheel)
+        assert pins.get(name) == version, f"{wheel} is not pinned in requirements-extension.txt"
+        for platform in platforms & set(manifest["platforms"]):
+            shipped.setdefault((name, python_tag, platform), []).append(wheel)
+    expected = {(name, "cp" + py.replace(".", ""), platform)
+                for name in pins for py in build.PYTHON_VERSIONS for platform in manifest["platforms"]}
+    assert set(shipped) == expected, "run: python tools/build_extension.py --update-manifest"
+    assert all(len(wheels) == 1 for wheels in shipped.values())
+    assert "numpy" not in pins, "numpy ships with Blender and must never be bundled"
