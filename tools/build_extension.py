@@ -99,6 +99,15 @@ def parse_wheel_name(filename):
     return name.lower(), version, python_tag, platforms
 
 
+def this_platform():
+    """Blender's name for this machine's platform, e.g. ``linux-x64``."""
+    import platform
+
+    system = {"win32": "windows", "darwin": "macos"}.get(sys.platform, sys.platform)
+    machine = platform.machine().lower()
+    return f"{system}-{_ARCH_FROM_TAG.get(machine, (machine,))[0]}"
+
+
 def find_cached_wheel(name, version, python_version, platform, files):
     """Return the cached wheel file name matching one pin, or None."""
     python_tag = "cp" + python_version.replace(".", "")
@@ -149,7 +158,11 @@ def fetch_wheels(platforms, pins=None, cache=WHEEL_CACHE):
 
 def blender_ext_paths():
     """Return ``(blender_ext.py, tags.py)`` from the installed bpy."""
-    import bpy  # Imported late: loading Blender takes a second and only the build needs it.
+    try:
+        import bpy  # Imported late: loading Blender takes a second and only the build needs it.
+    except ImportError:
+        raise SystemExit("bpy is missing: run with the project's venv, e.g. .venv/bin/python "
+                         "tools/build_extension.py (bash tools/setup_env.sh creates it)") from None
 
     scripts = bpy.utils.system_resource("SCRIPTS")
     return (os.path.join(scripts, "addons_core", "bl_pkg", "cli", "blender_ext.py"),

@@ -24,7 +24,6 @@ import ``bpy`` from outside ``tests/addon``.
 
 import importlib.util
 import os
-import platform
 import shutil
 import sys
 import tempfile
@@ -53,14 +52,6 @@ def load_build_tool():
     return module
 
 
-def this_platform():
-    """Blender's name for this machine's platform, e.g. ``linux-x64``."""
-    system = {"win32": "windows", "darwin": "macos"}.get(sys.platform, sys.platform)
-    machine = {"x86_64": "x64", "amd64": "x64", "aarch64": "arm64"}.get(platform.machine().lower(),
-                                                                         platform.machine().lower())
-    return f"{system}-{machine}"
-
-
 def fail_on_error(ex):
     """``handle_error`` for addon_utils: raise instead of printing and going on."""
     raise ex
@@ -76,8 +67,9 @@ def user_resources():
 @pytest.fixture(scope="session")
 def extension_zip(tmp_path_factory):
     """Build this platform's extension zip once per session and return its path."""
-    out = tmp_path_factory.mktemp("extension")
-    return load_build_tool().build([this_platform()], str(out))[this_platform()]
+    build_tool = load_build_tool()
+    platform = build_tool.this_platform()
+    return build_tool.build([platform], str(tmp_path_factory.mktemp("extension")))[platform]
 
 
 @pytest.fixture(scope="session")
