@@ -1,0 +1,402 @@
+"""Deform a graph so its handles reach their targets (paper sections 4 and 5).
+
+Handles are hard constraints: their positions are set, not weighted, and their unknowns are
+eliminated. Moving handles only changes right-hand sides.
+
+The paper iterates ``V <- (A^T A)^-1 A^T b(V)`` (equation 9): a preconditioned gradient step on
+``E(V) = ||A V - b(V)||^2`` with a matrix that treats turning an edge as stiff, so free limbs
+creep toward their pose over hundreds of iterations. We start from the as-similar-as-possible
+pose (one linear solve that turns free limbs with what they hang from), take a few projected
+Newton steps (:mod:`solver.hessian`: one numeric refactorisation each, the symbolic analysis is
+shared), then continue with L-BFGS using the last factor as its initial Hessian, so later
+iterations cost one back-substitution as in the paper. A backtracking line search makes every
+iteration lower the energy.
+
+With ``preserve_area`` the total area is a hard constraint (section 5). Each iteration makes one
+extra solve ``d = H^-1 J^T`` as the paper does with ``(A^T A)^-1 J^T``; the step is projected onto
+the constraint's tangent in that metric and, since area is quadratic in the positions, the exact
+correction along ``d`` is a root of a quadratic: the area is met to rounding at every iterate.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+import qdldl
+from scipy.sparse import identity, triu
+
+from .energy import Energy, similarity_rows
+from .hessian import Hessian
+
+__all__ = ["Deformer", "Solution", "DEFAULT_MAX_ITERATIONS", "DEFAULT_TOLERANCE"]
+
+DEFAULT_MAX_ITERATIONS = 30
+# Stop when no point moved more than this fraction of the shape's size in an iteration.
+DEFAULT_TOLERANCE = 1e-4
+# Newton steps (refactorisations) at most per solve, taken while steps are larger than
+# NEWTON_UNTIL times the shape's size; then L-BFGS reuses the last factor.
+NEWTON_STEPS = 6
+NEWTON_UNTIL = 1e-3
+# The area constraint's curvature is not in the Newton matrix (adding it makes the matrix
+# indefinite), so constrained solves lean on more Newton steps.
+NEWTON_STEPS_WITH_AREA = 12
+# Curvature pairs kept by L-BFGS.
+HISTORY = 8
+# Armijo sufficient-decrease constant and the most halvings the line search tries.
+ARMIJO = 1e-4
+MAX_HALVINGS = 30
+
+
+@dataclass
+class Solution:
+    """What :meth:`Deformer.solve` returns.
+
+    Attributes
+    ----------
+    positions : (n, 2) float64 ndarray
+        Deformed positions of all graph points; handles sit exactly on their targets.
+    iterations : int
+        Iterations run.
+    energies : list of float
+        Energy after each iteration (never increasing).
+    converged : bool
+        Whether the step fell below the tolerance before ``max_iterations``.
+    factorizations : int
+        Numeric refactorisations of the Hessian (Newton steps) this solve made.
+    """
+
+    positions: np.ndarray
+    iterations: int = 0
+    energies: list = field(default_factory=list)
+    converged: bool = False
+    factorizations: int = 0
+
+
+class _AreaConstraint:
+    """Signed area of all boundary loops: a quadratic form in the positions."""
+
+    def __init__(self, graph):
+        self.here = graph.boundary
+        self.after = np.concatenate([np.roll(loop, -1) for loop in graph.boundary_loops])
+        self.before = np.concatenate([np.roll(loop, 1) for loop in graph.boundary_loops])
+        self.rest = self.area(graph.points)
+
+    def area(self, v):
+        h, a = v[self.here], v[self.after]
+        return 0.5 * float(np.dot(h[:, 0], a[:, 1]) - np.dot(a[:, 0], h[:, 1]))
+
+    def jacobian(self, v):
+        """d area / d V, shape (n, 2)."""
+        grad = np.zeros_like(v)
+        grad[self.here, 0] = 0.5 * (v[self.after, 1] - v[self.before, 1])
+        grad[self.here, 1] = 0.5 * (v[self.before, 0] - v[self.after, 0])
+        return grad
+
+    def restore(self, v, direction):
+        """Move ``v`` along ``direction`` so its area is the rest area; False if it cannot."""
+        a = self.area(direction)
+        b = float(np.einsum("ij,ij->", self.jacobian(v), direction))
+        c = self.area(v) - self.rest
+        if abs(a) <= 1e-14 * abs(b):
+            if b == 0.0:
+                return c == 0.0
+            mu = -c / b
+        else:
+            discriminant = b * b - 4.0 * a * c
+            if discriminant < 0.0:
+                return False
+            root = np.sqrt(discriminant)
+            # The smaller correction; written to avoid cancellation.
+            q = -0.5 * (b + np.copysign(root, b))
+            candidates = [q / a, c / q] if q != 0.0 else [0.0]
+            mu = min(candidates, key=abs)
+        v += mu * direction
+        return True
+
+
+class Deformer:
+    """The paper's deformer for one graph and one set of handles.
+
+    Parameters
+    ----------
+    graph : solver.Graph
+    handles : (h,) array_like of int
+        Indices of graph points that are moved to targets. A connected part of the graph with
+        no handle stays at rest.
+    weights : dict, optional
+        Weights of the energy terms ``"laplacian"``, ``"mvc"`` and ``"edge"``.
+    preserve_area : bool
+        Keep the total area (islands minus holes) equal to the rest area.
+
+    Raises
+    ------
+    ValueError
+        Handles out of range or repeated, bad weights, or ``preserve_area`` with every boundary
+        point a handle (the area would be fixed by the handles alone).
+    """
+
+    def __init__(self, graph, handles, weights=None, preserve_area=False):
+        self.graph = graph
+        handles = np.asarray(handles, dtype=np.int64).ravel()
+        if len(handles) and (handles.min() < 0 or handles.max() >= graph.n):
+            raise ValueError(f"handle indices must be in [0, {graph.n}), got {handles.min()}..{handles.max()}")
+        if len(np.unique(handles)) != len(handles):
+            raise ValueError("a point is given as a handle twice")
+        self.handles = handles
+        self.energy = Energy(graph, weights)
+        self.preserve_area = bool(preserve_area)
+
+        fixed = np.zeros(graph.n, dtype=bool)
+        fixed[handles] = True
+        labels = graph.components()
+        anchored = np.zeros(labels.max() + 1, dtype=bool)
+        anchored[labels[handles]] = True
+        self._resting = ~anchored[labels]  # islands without handles stay put
+        fixed |= self._resting
+        self.free = np.flatnonzero(~fixed)
+
+        if len(self.free):
+            self._free_transpose = self.energy.matrix.tocsc()[:, self.free].T.tocsr()
+            self._hessian = Hessian(self.energy, self.free)
+            # The similarity system for the start (see energy.similarity_rows), x and y stacked.
+            similarity = similarity_rows(graph.points, graph.triangles).tocsc()
+            stacked_free = np.concatenate([self.free, graph.n + self.free])
+            fixed_points = np.flatnonzero(fixed)
+            self._stacked_fixed = np.concatenate([fixed_points, graph.n + fixed_points])
+            similarity_free = similarity[:, stacked_free]
+            self._similarity_fixed = similarity[:, self._stacked_fixed].tocsr()
+            self._similarity_free_transpose = similarity_free.T.tocsr()
+            normal = (self._similarity_free_transpose @ similarity_free).tocsc()
+            # Free points touching no triangle would make this singular; a tiny diagonal keeps
+            # them where the rigid fit put them.
+            normal = normal + 1e-12 * _diagonal_scale(normal) * identity(normal.shape[0], format="csc")
+            self._similarity_factor = qdldl.Solver(triu(normal, format="csc"), upper=True)
+        self._area = _AreaConstraint(graph) if self.preserve_area else None
+        if self._area is not None and not np.isin(graph.boundary, self.free).any():
+            raise ValueError("preserve_area needs at least one boundary point that is not a handle")
+
+    def _start(self, targets, initial):
+        rest = self.graph.points
+        if initial is not None:
+            positions = np.array(initial, dtype=np.float64)
+            if positions.shape != rest.shape:
+                raise ValueError(f"initial must have shape {rest.shape}, got {positions.shape}")
+            if not np.all(np.isfinite(positions)):
+                raise ValueError("initial has non-finite coordinates (NaN or inf)")
+        else:
+            positions = _rigid_fit(rest[self.handles], targets).apply(rest)
+        positions[self._resting] = rest[self._resting]
+        positions[self.handles] = targets
+        if initial is None and len(self.free):
+            positions = self._similar_start(positions)
+        return positions
+
+    def _similar_start(self, positions):
+        """The as-similar-as-possible pose for the current fixed points (one linear solve)."""
+        n = self.graph.n
+        stacked = np.concatenate([positions[:, 0], positions[:, 1]])
+        rhs = -(self._similarity_free_transpose @ (self._similarity_fixed @ stacked[self._stacked_fixed]))
+        # A start the solver never had a target for (a target 100 times the shape away) is
+        # still finite: qdldl solves a positive definite system.
+        free = self._similarity_factor.solve(np.ascontiguousarray(rhs))
+        k = len(self.free)
+        positions = positions.copy()
+        positions[self.free, 0] = free[:k]
+        positions[self.free, 1] = free[k:]
+        return positions
+
+    def solve(self, targets, max_iterations=None, tolerance=None, initial=None):
+        """Deform so that ``handles[i]`` lands on ``targets[i]``.
+
+        Parameters
+        ----------
+        targets : (h, 2) array_like
+            Target of each handle, in the order given to the constructor.
+        max_iterations : int, optional
+            Default ``DEFAULT_MAX_ITERATIONS``.
+        tolerance : float, optional
+            Stop once no point moves more than ``tolerance * graph.size`` in an iteration.
+            ``0.0`` runs exactly ``max_iterations``. Default ``DEFAULT_TOLERANCE``.
+        initial : (n, 2) array_like, optional
+            Warm start. By default the rest shape moved rigidly to best fit the targets, so the
+            result depends on the targets alone.
+
+        Returns
+        -------
+        Solution
+
+        Raises
+        ------
+        ValueError
+            Targets of the wrong shape or not finite.
+        """
+        targets = np.asarray(targets, dtype=np.float64)
+        if targets.shape != (len(self.handles), 2):
+            raise ValueError(f"targets must have shape ({len(self.handles)}, 2), got {targets.shape}")
+        if not np.all(np.isfinite(targets)):
+            raise ValueError("targets have non-finite coordinates (NaN or inf)")
+        max_iterations = DEFAULT_MAX_ITERATIONS if max_iterations is None else int(max_iterations)
+        tolerance = DEFAULT_TOLERANCE if tolerance is None else float(tolerance)
+        if max_iterations < 0 or tolerance < 0:
+            raise ValueError("max_iterations and tolerance must be >= 0")
+
+        positions = self._start(targets, initial)
+        if len(self.free) == 0:
+            return Solution(positions, 0, [], True)
+        step_limit = tolerance * self.graph.size
+        area = self._area
+        direction = None
+        hessian = self._hessian
+        newton_limit = NEWTON_STEPS if area is None else NEWTON_STEPS_WITH_AREA
+        rows_now = self.energy.matrix @ positions
+        hessian.factorize(rows_now)
+        newton_steps = 1
+        if area is not None:
+            direction = self._area_direction(positions)
+            area.restore(positions, direction)
+            rows_now = self.energy.matrix @ positions
+
+        residual = rows_now - self.energy.targets(rows_now)
+        energy = float(np.einsum("ij,ij->", residual, residual))
+        gradient = self._free_transpose @ residual  # half the true gradient
+        history = deque(maxlen=HISTORY)
+        solution = Solution(positions)
+        for _ in range(max_iterations):
+            search_gradient = gradient
+            if area is not None:
+                # Along the constraint the energy's curvature is the Lagrangian's.
+                multiplier = self._multiplier(gradient, positions, direction)
+                search_gradient = gradient - multiplier * area.jacobian(positions)[self.free]
+            step = -self._two_loop(search_gradient, history)
+            if area is not None:
+                step = self._tangent(step, positions, direction)
+            slope = 2.0 * float(np.einsum("ij,ij->", gradient, step))
+            if slope >= 0.0 and history:
+                history.clear()
+                step = -hessian.solve(search_gradient)
+                if area is not None:
+                    step = self._tangent(step, positions, direction)
+                slope = 2.0 * float(np.einsum("ij,ij->", gradient, step))
+            moved = self._line_search(positions, energy, step, slope, direction)
+            if moved is None:
+                # No decrease is possible: this is a minimum to rounding.
+                solution.iterations += 1
+                solution.energies.append(energy)
+                if tolerance > 0.0:
+                    solution.converged = True
+                    break
+                continue
+            new_positions, new_energy, new_residual, rows_now = moved
+            new_gradient = self._free_transpose @ new_residual
+            s = new_positions[self.free] - positions[self.free]
+            largest = float(np.abs(s).max())
+            solution.iterations += 1
+            solution.energies.append(new_energy)
+            refactor = newton_steps < newton_limit and largest > NEWTON_UNTIL * self.graph.size
+            if refactor:
+                hessian.factorize(rows_now)
+                newton_steps += 1
+                history.clear()
+            if area is not None:
+                new_direction = self._area_direction(new_positions)
+            if not refactor:
+                y = new_gradient - gradient
+                if area is not None:
+                    multiplier = self._multiplier(new_gradient, new_positions, new_direction)
+                    y -= multiplier * (area.jacobian(new_positions) - area.jacobian(positions))[self.free]
+                sy = float(np.einsum("ij,ij->", s, y))
+                if sy > 1e-12 * np.sqrt(float(np.einsum("ij,ij->", s, s)) * float(np.einsum("ij,ij->", y, y))):
+                    history.append((s, y, 1.0 / sy))
+            positions, energy, gradient = new_positions, new_energy, new_gradient
+            if area is not None:
+                direction = new_direction
+            if tolerance > 0.0 and largest <= step_limit:
+                solution.converged = True
+                break
+        solution.positions = positions
+        solution.factorizations = newton_steps
+        return solution
+
+    def _two_loop(self, gradient, history):
+        """L-BFGS inverse-Hessian product with K as the initial Hessian."""
+        q = gradient.copy()
+        coefficients = []
+        for s, y, rho in reversed(history):
+            a = rho * float(np.einsum("ij,ij->", s, q))
+            q -= a * y
+            coefficients.append(a)
+        z = self._hessian.solve(q)
+        for (s, y, rho), a in zip(history, reversed(coefficients)):
+            b = rho * float(np.einsum("ij,ij->", y, z))
+            z += (a - b) * s
+        return z
+
+    def _area_direction(self, positions):
+        """``K^-1 J^T`` on the free points, embedded in an (n, 2) array."""
+        direction = np.zeros_like(positions)
+        direction[self.free] = self._hessian.solve(self._area.jacobian(positions)[self.free])
+        return direction
+
+    def _multiplier(self, gradient, positions, direction):
+        """Least-squares Lagrange multiplier of the area constraint in the metric of H."""
+        jacobian = self._area.jacobian(positions)[self.free]
+        along = float(np.einsum("ij,ij->", jacobian, direction[self.free]))
+        if along <= 0.0:
+            return 0.0
+        return float(np.einsum("ij,ij->", gradient, direction[self.free])) / along
+
+    def _tangent(self, step, positions, direction):
+        """Remove the part of a free-point step that changes the area to first order."""
+        jacobian = self._area.jacobian(positions)[self.free]
+        d = direction[self.free]
+        along = float(np.einsum("ij,ij->", jacobian, d))
+        if along <= 0.0:
+            return step
+        return step - d * (float(np.einsum("ij,ij->", jacobian, step)) / along)
+
+    def _line_search(self, positions, energy, step, slope, direction):
+        """Backtrack from the full step until the energy decreases enough (Armijo)."""
+        if slope >= 0.0:
+            return None
+        alpha = 1.0
+        for _ in range(MAX_HALVINGS):
+            trial = positions.copy()
+            trial[self.free] += alpha * step
+            if self._area is None or self._area.restore(trial, direction):
+                rows_now = self.energy.matrix @ trial
+                residual = rows_now - self.energy.targets(rows_now)
+                trial_energy = float(np.einsum("ij,ij->", residual, residual))
+                if trial_energy <= energy + ARMIJO * alpha * slope:
+                    return trial, trial_energy, residual, rows_now
+            alpha *= 0.5
+        return None
+
+
+@dataclass
+class _RigidMotion:
+    rotation: np.ndarray
+    source_centre: np.ndarray
+    target_centre: np.ndarray
+
+    def apply(self, points):
+        return (points - self.source_centre) @ self.rotation.T + self.target_centre
+
+
+def _rigid_fit(source, target):
+    """Rotation and translation taking ``source`` points closest to ``target`` (2D Procrustes)."""
+    if len(source) == 0:
+        return _RigidMotion(np.eye(2), np.zeros(2), np.zeros(2))
+    source_centre, target_centre = source.mean(axis=0), target.mean(axis=0)
+    p, q = source - source_centre, target - target_centre
+    cos = float(np.sum(p * q))
+    sin = float(np.sum(p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]))
+    angle = np.arctan2(sin, cos) if (cos or sin) else 0.0
+    c, s = np.cos(angle), np.sin(angle)
+    return _RigidMotion(np.array([[c, -s], [s, c]]), source_centre, target_centre)
+
+
+def _diagonal_scale(matrix):
+    diagonal = matrix.diagonal()
+    return float(diagonal.max()) if len(diagonal) else 1.0

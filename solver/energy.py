@@ -1,0 +1,294 @@
+"""The deformation energy of the paper, equation (6), written as ``||A V - b(V)||^2``.
+
+Rows of ``A`` come in three blocks, each with its own weight (the square root of the user's
+weight multiplies the rows, so the weight multiplies the squared term):
+
+* ``laplacian``: the curve Laplacian, equations (1)-(2), one row per boundary vertex, plus the
+  two curve edges at that vertex. The paper fits the transform T_i of section 4.2 to those two
+  edges as a general 2x2 matrix; fitted that way it maps both rest edges exactly onto the current
+  ones, so T_i delta_i^0 equals the current Laplacian and the term does nothing (and D_i is
+  singular on straight runs). We constrain T_i to a rotation, as its reference [15] does, and fit
+  it to the same three rows the energy measures, so the local step minimises the energy exactly.
+* ``mvc``: mean value coordinates of interior points, equation (3); the target is zero.
+* ``edge``: edge lengths, equations (4)-(5), for the edges not on the boundary (E_g); the target
+  ``l0 * d / |d|`` is the nearest vector of rest length, again an exact minimiser.
+
+Because every target is the exact minimiser of its own residual, ``E(V) = min_b ||A V - b||^2``
+over admissible targets, and its gradient is ``2 A^T (A V - b(V))`` (envelope theorem). That is
+what lets :mod:`solver.optimize` run quasi-Newton steps with an energy that never rises.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix, vstack
+
+__all__ = ["DEFAULT_WEIGHTS", "Energy", "mean_value_weights", "similarity_rows"]
+
+DEFAULT_WEIGHTS = {"laplacian": 1.0, "mvc": 1.0, "edge": 1.0}
+
+# Angles are kept inside (0, pi) by this margin: tan(alpha / 2) blows up as alpha nears pi.
+_ANGLE_MARGIN = 1e-6
+
+
+def mean_value_weights(points, centres, neighbours, row_starts):
+    """Mean value coordinates of each centre with respect to its neighbours (Floater 2003).
+
+    Parameters
+    ----------
+    points : (n, 2) float ndarray
+    centres : (c,) int ndarray
+        The points whose coordinates are wanted.
+    neighbours : (e,) int ndarray
+        Neighbour indices, grouped by centre (CSR order).
+    row_starts : (c + 1,) int ndarray
+        ``neighbours[row_starts[k]:row_starts[k+1]]`` are the neighbours of ``centres[k]``.
+
+    Returns
+    -------
+    (e,) float64 ndarray
+        Weights in the order of ``neighbours``; each centre's weights sum to 1 and reproduce it:
+        ``points[centre] == sum(w_j * points[j])`` for a point inside its neighbours' polygon.
+    """
+    counts = np.diff(row_starts)
+    owner = np.repeat(np.arange(len(centres)), counts)
+    offset = points[neighbours] - points[centres[owner]]
+    theta = np.arctan2(offset[:, 1], offset[:, 0])
+    order = np.lexsort((theta, owner))  # counter-clockwise within each centre
+    sorted_theta = theta[order]
+    position = np.arange(len(order))
+    following = position + 1
+    last = row_starts[1:] - 1
+    following[last] = row_starts[:-1]
+    # alpha[k]: angle at the centre between sorted neighbours k and k+1.
+    alpha = np.mod(sorted_theta[following] - sorted_theta, 2.0 * np.pi)
+    alpha = np.clip(alpha, _ANGLE_MARGIN, np.pi - _ANGLE_MARGIN)
+    half_tan = np.tan(0.5 * alpha)
+    preceding = position - 1
+    preceding[row_starts[:-1]] = last
+    length = np.maximum(np.linalg.norm(offset[order], axis=1), 1e-300)
+    sorted_weights = (half_tan[preceding] + half_tan) / length
+    weights = np.empty_like(sorted_weights)
+    weights[order] = sorted_weights
+    totals = np.bincount(owner, weights=weights, minlength=len(centres))
+    return weights / totals[owner]
+
+
+class Energy:
+    """Rows of ``A``, their rest targets, and the local step that gives ``b(V)``.
+
+    Parameters
+    ----------
+    graph : solver.Graph
+    weights : dict, optional
+        Weights of the ``"laplacian"``, ``"mvc"`` and ``"edge"`` terms (default 1 each).
+
+    Attributes
+    ----------
+    matrix : (r, n) scipy.sparse.csr_matrix
+        ``A``, weighted.
+    """
+
+    def __init__(self, graph, weights=None):
+        self.weights = dict(DEFAULT_WEIGHTS)
+        for key, value in (weights or {}).items():
+            if key not in DEFAULT_WEIGHTS:
+                raise ValueError(f"unknown energy term {key!r}; the terms are {sorted(DEFAULT_WEIGHTS)}")
+            value = float(value)
+            if not np.isfinite(value) or value < 0:
+                raise ValueError(f"weight of {key!r} must be a finite number >= 0, got {value}")
+            self.weights[key] = value
+        if sum(self.weights.values()) == 0:
+            raise ValueError("all energy weights are zero")
+        n = graph.n
+        rest = graph.points
+
+        curve, self._groups, self.curve_points = self._curve_rows(graph)
+        mvc = self._mean_value_rows(graph)
+        lengths, self.length_edges = self._length_rows(graph)
+        scale = {key: np.sqrt(value) for key, value in self.weights.items()}
+        self.curve_scale, self.edge_scale = scale["laplacian"], scale["edge"]
+        blocks = [scale["laplacian"] * curve, scale["mvc"] * mvc, scale["edge"] * lengths]
+        self.matrix = vstack([b.tocsr() for b in blocks], format="csr")
+        sizes = [b.shape[0] for b in blocks]
+        self.curve_rows = slice(0, sizes[0])
+        self.length_rows = slice(sizes[0] + sizes[1], sum(sizes))
+        self.rows = sum(sizes)
+
+        rest_rows = self.matrix @ rest
+        self.curve_rest = rest_rows[self.curve_rows].copy()
+        rest_edge = rest_rows[self.length_rows]
+        self.rest_length = np.linalg.norm(rest_edge, axis=1)
+        self._rest_direction = rest_edge / np.maximum(self.rest_length, 1e-300)[:, None]
+        self._group_count = len(graph.boundary)
+        self.n = n
+
+    @staticmethod
+    def _curve_rows(graph):
+        """Curve Laplacian (eq. 1) and the two curve edges at each boundary vertex (sec. 4.2)."""
+        rows, cols, vals, groups, corners = [], [], [], [], []
+        row = 0
+        group = 0
+        for loop in graph.boundary_loops:
+            m = len(loop)
+            here, before, after = loop, np.roll(loop, 1), np.roll(loop, -1)
+            g = group + np.arange(m)
+            r = row + 3 * np.arange(m)
+            # Laplacian row: v_i - (v_{i-1} + v_{i+1}) / 2
+            rows += [r, r, r]
+            cols += [here, before, after]
+            vals += [np.ones(m), -0.5 * np.ones(m), -0.5 * np.ones(m)]
+            # Edge rows: v_{i+1} - v_i and v_{i-1} - v_i
+            rows += [r + 1, r + 1, r + 2, r + 2]
+            cols += [after, here, before, here]
+            vals += [np.ones(m), -np.ones(m), np.ones(m), -np.ones(m)]
+            groups.append(np.repeat(g, 3))
+            corners.append(np.stack([here, before, after], axis=1))
+            row += 3 * m
+            group += m
+        matrix = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                            shape=(row, graph.n))
+        return matrix, np.concatenate(groups), np.concatenate(corners)
+
+    @staticmethod
+    def _mean_value_rows(graph):
+        """v_i - sum_j w_ij v_j for interior points (eq. 3)."""
+        centres = graph.interior
+        if len(centres) == 0:
+            return coo_matrix((0, graph.n))
+        adjacency = graph.adjacency()[centres]
+        neighbours = adjacency.indices.astype(np.int64)
+        starts = adjacency.indptr.astype(np.int64)
+        weights = mean_value_weights(graph.points, centres, neighbours, starts)
+        k = len(centres)
+        owner = np.repeat(np.arange(k), np.diff(starts))
+        rows = np.concatenate([np.arange(k), owner])
+        cols = np.concatenate([centres, neighbours])
+        vals = np.concatenate([np.ones(k), -weights])
+        return coo_matrix((vals, (rows, cols)), shape=(k, graph.n))
+
+    @staticmethod
+    def _length_rows(graph):
+        """v_i - v_j for the edges off the boundary, E_g (eq. 4)."""
+        n = graph.n
+        loop_keys = np.concatenate([np.minimum(loop, np.roll(loop, -1)) * n + np.maximum(loop, np.roll(loop, -1))
+                                    for loop in graph.boundary_loops])
+        keys = graph.edges[:, 0] * n + graph.edges[:, 1]
+        inner = graph.edges[~np.isin(keys, loop_keys)]
+        k = len(inner)
+        rows = np.concatenate([np.arange(k), np.arange(k)])
+        cols = np.concatenate([inner[:, 0], inner[:, 1]])
+        vals = np.concatenate([np.ones(k), -np.ones(k)])
+        return coo_matrix((vals, (rows, cols)), shape=(k, n)), inner
+
+    def targets(self, rows_now):
+        """The local step: ``b(V)`` from ``A V``.
+
+        Parameters
+        ----------
+        rows_now : (r, 2) float ndarray
+            ``A @ V`` at the current positions.
+
+        Returns
+        -------
+        (r, 2) float64 ndarray
+        """
+        targets = np.zeros_like(rows_now)
+        rest = self.curve_rest
+        cos, sin, _ = self.curve_rotations(rows_now)
+        cos, sin = cos[self._groups], sin[self._groups]
+        targets[self.curve_rows, 0] = cos * rest[:, 0] - sin * rest[:, 1]
+        targets[self.curve_rows, 1] = sin * rest[:, 0] + cos * rest[:, 1]
+        # Nearest vector of rest length for each inner edge (eq. 4's e(v_i, v_j)).
+        edge = rows_now[self.length_rows]
+        length = np.linalg.norm(edge, axis=1)
+        direction = self._rest_direction.copy()
+        ok = length > 0.0
+        direction[ok] = edge[ok] / length[ok, None]
+        targets[self.length_rows] = self.rest_length[:, None] * direction
+        return targets
+
+    def curve_rotations(self, rows_now):
+        """Rotation of each boundary vertex fitted to its three curve rows (2D Procrustes).
+
+        Returns
+        -------
+        cos, sin : (m,) float64 ndarray
+            The rotation angle's cosine and sine (identity where undefined).
+        norm : (m,) float64 ndarray
+            ``|sum_k t_k . d_k, sum_k t_k x d_k|``; the fitted rotation maximises the first.
+        """
+        rest = self.curve_rest
+        now = rows_now[self.curve_rows]
+        dots = rest[:, 0] * now[:, 0] + rest[:, 1] * now[:, 1]
+        crosses = rest[:, 0] * now[:, 1] - rest[:, 1] * now[:, 0]
+        cos = np.bincount(self._groups, weights=dots, minlength=self._group_count)
+        sin = np.bincount(self._groups, weights=crosses, minlength=self._group_count)
+        norm = np.hypot(cos, sin)
+        degenerate = norm == 0.0
+        safe = np.where(degenerate, 1.0, norm)
+        cos, sin = np.where(degenerate, 1.0, cos / safe), np.where(degenerate, 0.0, sin / safe)
+        return cos, sin, norm
+
+    def evaluate(self, positions):
+        """Energy and residual at ``positions``.
+
+        Parameters
+        ----------
+        positions : (n, 2) float ndarray
+
+        Returns
+        -------
+        energy : float
+        residual : (r, 2) float64 ndarray
+            ``A V - b(V)``.
+        """
+        rows_now = self.matrix @ positions
+        residual = rows_now - self.targets(rows_now)
+        return float(np.einsum("ij,ij->", residual, residual)), residual
+
+
+def similarity_rows(points, triangles):
+    """Rows of the linear as-similar-as-possible energy, on stacked coordinates ``[x; y]``.
+
+    For each triangle corner ``a`` with the next corners ``b, c``, the rest shape gives the
+    complex ratio ``w = (c - a) / (b - a)``; a pose where every triangle is a rotated, scaled
+    copy of its rest self satisfies ``(c - a) - w (b - a) = 0``. The rows are linear, and a
+    least-squares pose under handle constraints is smooth and rotates free limbs with what they
+    hang from: a start for the nonlinear solve that depends on the handle targets alone.
+
+    Parameters
+    ----------
+    points : (n, 2) float ndarray
+        Rest positions.
+    triangles : (t, 3) int ndarray
+
+    Returns
+    -------
+    (6 t, 2 n) scipy.sparse.csr_matrix
+        Acting on ``np.concatenate([x, y])``.
+    """
+    n = len(points)
+    z = points[:, 0] + 1j * points[:, 1]
+    rows, cols, vals = [], [], []
+    count = 0
+    for shift in range(3):
+        a, b, c = (np.roll(triangles, -shift, axis=1)[:, k] for k in range(3))
+        base = z[b] - z[a]
+        ok = np.abs(base) > 0
+        w = np.where(ok, (z[c] - z[a]) / np.where(ok, base, 1.0), 0.0)
+        p, q = w.real, w.imag
+        t = len(a)
+        rx = count + np.arange(t)      # real part rows
+        ry = rx + t                     # imaginary part rows
+        # real: (x_c - x_a) - p (x_b - x_a) + q (y_b - y_a)
+        rows += [rx] * 6
+        cols += [c, a, b, a, n + b, n + a]
+        vals += [np.ones(t), -np.ones(t), -p, p, q, -q]
+        # imaginary: (y_c - y_a) - p (y_b - y_a) - q (x_b - x_a)
+        rows += [ry] * 6
+        cols += [n + c, n + a, n + b, n + a, b, a]
+        vals += [np.ones(t), -np.ones(t), -p, p, -q, q]
+        count += 2 * t
+    return coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(count, 2 * n)).tocsr()

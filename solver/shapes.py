@@ -1,0 +1,168 @@
+"""Input shapes: validate rings, work out nesting and orientation, repair what can be repaired.
+
+A shape arrives as closed rings, each a ``(k, 2)`` array, in any orientation and any order.
+Rings nested at an even depth (0, 2, ...) bound material, rings at an odd depth bound holes.
+Everything here returns oriented rings: outer boundaries counter-clockwise, holes clockwise,
+so the signed areas of all rings add up to the shape's area.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+__all__ = ["signed_area", "clean_ring", "shape_geometry", "geometry_rings"]
+
+
+def signed_area(ring):
+    """Signed area of a closed polygon (shoelace formula); positive when counter-clockwise.
+
+    Parameters
+    ----------
+    ring : (k, 2) array_like
+        Polygon vertices, without repeating the first one at the end.
+
+    Returns
+    -------
+    float
+    """
+    ring = np.asarray(ring, dtype=np.float64)
+    x, y = ring[:, 0], ring[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def clean_ring(ring, index=0):
+    """Check one ring and drop repeated points.
+
+    Parameters
+    ----------
+    ring : (k, 2) array_like
+        Closed polygon; the closing point may or may not be repeated.
+    index : int
+        Position of the ring in the caller's list, used in error messages.
+
+    Returns
+    -------
+    (k', 2) float64 ndarray
+        The ring with consecutive duplicates (and a repeated closing point) removed.
+
+    Raises
+    ------
+    ValueError
+        Wrong shape, non-finite coordinates, fewer than 3 distinct points, or zero area.
+    """
+    try:
+        points = np.asarray(ring, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"ring {index} is not an array of numbers: {err}") from None
+    if points.ndim != 2 or points.shape[1] != 2:
+        raise ValueError(f"ring {index} must be a (k, 2) array of points, got shape {points.shape}")
+    if not np.all(np.isfinite(points)):
+        raise ValueError(f"ring {index} has non-finite coordinates (NaN or inf)")
+    if len(points) == 0:
+        raise ValueError(f"ring {index} is empty")
+    extent = float(np.ptp(points, axis=0).max())
+    # Two points closer than this are the same point: rounding noise, not geometry.
+    tolerance = 1e-12 * max(extent, float(np.abs(points).max()), 1e-300)
+    step = np.linalg.norm(points - np.roll(points, 1, axis=0), axis=1)
+    points = points[step > tolerance] if len(points) > 1 else points
+    if len(np.unique(points, axis=0)) < 3:
+        raise ValueError(f"ring {index} has fewer than 3 distinct points")
+    if abs(signed_area(points)) <= 1e-12 * extent * extent:
+        raise ValueError(f"ring {index} has zero area (all its points are on one line)")
+    return points
+
+
+def _polygonal_part(geometry):
+    """Keep only the polygons of a geometry (make_valid may also return lines and points)."""
+    parts = shapely.get_parts(geometry)
+    polygons = [p for p in parts if isinstance(p, (shapely.Polygon, shapely.MultiPolygon))]
+    if not polygons:
+        return shapely.Polygon()
+    return shapely.union_all(polygons)
+
+
+def shape_geometry(rings):
+    """Turn rings into one valid shapely geometry: islands with their holes.
+
+    Nesting is worked out from containment, never from orientation: a ring inside an odd
+    number of other rings is a hole. Overlapping islands are merged. A self-intersecting ring
+    is repaired (a figure eight becomes two lobes) when its repair keeps area.
+
+    Parameters
+    ----------
+    rings : sequence of (k, 2) array_like
+
+    Returns
+    -------
+    shapely.Polygon or shapely.MultiPolygon
+        Valid, with counter-clockwise exteriors and clockwise holes.
+
+    Raises
+    ------
+    ValueError
+        No rings, a malformed ring (see :func:`clean_ring`), or a self-intersecting ring
+        that has no area once repaired.
+    """
+    if isinstance(rings, np.ndarray) and rings.ndim == 2:
+        rings = [rings]
+    rings = list(rings) if rings is not None else []
+    if not rings:
+        raise ValueError("no rings: a shape needs at least one closed ring")
+    cleaned = [clean_ring(ring, i) for i, ring in enumerate(rings)]
+
+    polygons = []
+    for i, ring in enumerate(cleaned):
+        polygon = shapely.Polygon(ring)
+        if not polygon.is_valid:
+            polygon = _polygonal_part(shapely.make_valid(polygon))
+            if polygon.is_empty or polygon.area <= 1e-9 * abs(signed_area(ring)) + 1e-300:
+                raise ValueError(f"ring {i} is self-intersecting and cannot be repaired")
+        polygons.append(polygon)
+
+    if len(polygons) == 1:
+        geometry = polygons[0]
+    else:
+        depth = _nesting_depth(polygons)
+        islands = []
+        for i in np.flatnonzero(depth % 2 == 0):
+            holes = [polygons[j] for j in np.flatnonzero(depth == depth[i] + 1)
+                     if polygons[i].contains(polygons[j])]
+            island = polygons[i]
+            if holes:
+                island = shapely.difference(island, shapely.union_all(holes))
+            islands.append(island)
+        geometry = _polygonal_part(shapely.union_all(islands))
+    if geometry.is_empty or geometry.area <= 0.0:
+        raise ValueError("the rings enclose no area")
+    return shapely.orient_polygons(geometry, exterior_cw=False)
+
+
+def _nesting_depth(polygons):
+    """How many other rings' polygons contain each ring's polygon."""
+    tree = shapely.STRtree(polygons)
+    inner, outer = tree.query(polygons, predicate="within")
+    keep = inner != outer
+    return np.bincount(inner[keep], minlength=len(polygons))
+
+
+def geometry_rings(geometry):
+    """Oriented rings of a shapely (multi)polygon, island by island.
+
+    Parameters
+    ----------
+    geometry : shapely.Polygon or shapely.MultiPolygon
+
+    Returns
+    -------
+    list of list of (k, 2) float64 ndarray
+        One list per island: its outer ring (counter-clockwise) first, then its holes
+        (clockwise). Closing points are not repeated.
+    """
+    geometry = shapely.orient_polygons(geometry, exterior_cw=False)
+    islands = []
+    for polygon in shapely.get_parts(geometry):
+        rings = [np.asarray(polygon.exterior.coords, dtype=np.float64)[:-1]]
+        rings += [np.asarray(hole.coords, dtype=np.float64)[:-1] for hole in polygon.interiors]
+        islands.append(rings)
+    return islands
