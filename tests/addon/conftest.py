@@ -57,11 +57,14 @@ def fail_on_error(ex):
     raise ex
 
 
+def pytest_sessionfinish(session, exitstatus):
+    shutil.rmtree(USER_RESOURCES, ignore_errors=True)
+
+
 @pytest.fixture(scope="session")
 def user_resources():
-    """The session's private user-resources folder (removed at the end)."""
-    yield USER_RESOURCES
-    shutil.rmtree(USER_RESOURCES, ignore_errors=True)
+    """The session's private user-resources folder (removed when pytest ends)."""
+    return USER_RESOURCES
 
 
 @pytest.fixture(scope="session")
