@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Install and cycle the extension in a Python that has bpy but not its deps.
 
-Run by ``test_install.py`` as ``python -S isolated_install.py ZIP`` with
+Run by ``test_install.py`` as ``python -S isolated_install.py ZIP MODULE...``
+(the bundled dependencies to check) with
 ``PYTHONPATH`` holding only bpy and its own requirements, and
 ``BLENDER_USER_RESOURCES`` pointing at an empty folder. Prints one JSON line.
 """
@@ -12,12 +13,11 @@ import json
 import os
 import sys
 
-DEPENDENCIES = ("scipy", "shapely", "contourpy")
 ADDON_MODULE = "bl_ext.user_default.shapedeform"
 
 
-def main(zip_path):
-    report = {"missing_before": [m for m in DEPENDENCIES if importlib.util.find_spec(m) is None]}
+def main(zip_path, dependencies):
+    report = {"missing_before": [m for m in dependencies if importlib.util.find_spec(m) is None]}
 
     import bpy
     import addon_utils
@@ -29,7 +29,7 @@ def main(zip_path):
     baseline = blender_state()
     module = addon_utils.enable(ADDON_MODULE, default_set=True)
     report["module_file"] = getattr(module, "__file__", None)
-    report["dependency_files"] = {m: importlib.import_module(m).__file__ for m in DEPENDENCIES}
+    report["dependency_files"] = {m: importlib.import_module(m).__file__ for m in dependencies}
     report["cycle_problems"] = register_cycle(ADDON_MODULE, baseline=baseline)
     report["enabled_after_cycle"] = addon_utils.check(ADDON_MODULE)[1]
     report["user_resources"] = os.environ["BLENDER_USER_RESOURCES"]
@@ -37,4 +37,4 @@ def main(zip_path):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main(sys.argv[1], sys.argv[2:])
