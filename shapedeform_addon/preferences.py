@@ -10,7 +10,7 @@ import bpy
 ADDON_ID = __package__.rpartition(".")[0]
 
 # Bundled runtime dependencies, shown so users can check the wheels loaded.
-_DEPENDENCIES = ("numpy", "scipy", "shapely", "contourpy")
+_DEPENDENCIES = ("numpy", "scipy", "shapely", "contourpy", "qdldl")
 
 
 def dependency_versions():
