@@ -13,7 +13,9 @@ Public names: :func:`build_graph`, :class:`Graph`, :class:`Deformer`, :func:`tra
 :func:`bind` and :class:`Binding`.
 """
 
+from .binding import Binding, bind
 from .deformer import Deformer, Solution
 from .graph import Graph, build_graph
+from .trace import trace_silhouette
 
-__all__ = ["Graph", "build_graph", "Deformer", "Solution"]
+__all__ = ["Graph", "build_graph", "Deformer", "Solution", "trace_silhouette", "bind", "Binding"]

@@ -68,7 +68,9 @@ def clean_ring(ring, index=0):
     points = points[step > tolerance] if len(points) > 1 else points
     if len(np.unique(points, axis=0)) < 3:
         raise ValueError(f"ring {index} has fewer than 3 distinct points")
-    if abs(signed_area(points)) <= 1e-12 * extent * extent:
+    # Collinear, not zero signed area: a figure eight's lobes cancel but it bounds area.
+    thickness = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)[-1]
+    if thickness <= 1e-12 * extent * np.sqrt(len(points)):
         raise ValueError(f"ring {index} has zero area (all its points are on one line)")
     return points
 
@@ -135,7 +137,19 @@ def shape_geometry(rings):
         geometry = _polygonal_part(shapely.union_all(islands))
     if geometry.is_empty or geometry.area <= 0.0:
         raise ValueError("the rings enclose no area")
+    geometry = _separate_pinches(geometry)
     return shapely.orient_polygons(geometry, exterior_cw=False)
+
+
+def _separate_pinches(geometry):
+    """Pull apart rings that touch at a point (a repaired figure eight, a hole touching its
+    outline): a vertex shared by two loops cannot be triangulated on both sides."""
+    points = np.concatenate([ring for island in geometry_rings(geometry) for ring in island])
+    if len(np.unique(points, axis=0)) == len(points):
+        return geometry
+    size = float(np.linalg.norm(np.ptp(points, axis=0)))
+    separated = geometry.buffer(-1e-6 * size, join_style="mitre", mitre_limit=10.0)
+    return _polygonal_part(separated) if not separated.is_empty else geometry
 
 
 def _nesting_depth(polygons):

@@ -76,7 +76,7 @@ def _segment_keys(first, second, n):
     return lo * n + hi
 
 
-def conforming_triangulation(loops, interior, geometry, max_rounds=40):
+def conforming_triangulation(loops, interior, geometry, max_rounds=20):
     """Triangulate boundary loops and interior points so that every loop segment is an edge.
 
     Parameters
@@ -119,10 +119,12 @@ def conforming_triangulation(loops, interior, geometry, max_rounds=40):
         for loop, start in zip(loops, starts[:-1]):
             index = np.arange(len(loop)) + start
             keys = _segment_keys(index, np.roll(index, -1), n)
-            missing = ~np.isin(keys, edge_keys)
+            following = np.roll(loop, -1, axis=0)
+            # A segment shorter than this is not split: it cannot be recovered by splitting
+            # (coincident points) and splitting it again would only multiply points.
+            missing = ~np.isin(keys, edge_keys) & (np.linalg.norm(following - loop, axis=1) > 1e-7 * scale)
             if missing.any():
                 missing_any = True
-                following = np.roll(loop, -1, axis=0)
                 midpoints = 0.5 * (loop[missing] + following[missing])
                 blocked_centres.append(midpoints)
                 blocked_radii.append(0.5 * np.linalg.norm(following[missing] - loop[missing], axis=1))

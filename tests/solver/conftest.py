@@ -1,0 +1,49 @@
+"""Shapes for the solver tests: real silhouettes and glyphs, not only circles."""
+
+import numpy as np
+import pytest
+
+import solver
+
+
+def disk(radius=1.0, count=64, centre=(0.0, 0.0)):
+    angle = np.linspace(0.0, 2.0 * np.pi, count, endpoint=False)
+    return np.stack([centre[0] + radius * np.cos(angle), centre[1] + radius * np.sin(angle)], axis=1)
+
+
+def glyph_rings(text, size=10.0):
+    """Outline rings of ``text`` in DejaVu Sans (shipped inside matplotlib)."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import TextPath
+
+    path = TextPath((0, 0), text, size=size, prop=FontProperties(family="DejaVu Sans"))
+    return [np.asarray(polygon[:-1], dtype=float) for polygon in path.to_polygons(closed_only=True)]
+
+
+def region(points, centre, radius):
+    return np.flatnonzero(np.linalg.norm(points - np.asarray(centre), axis=1) < radius)
+
+
+@pytest.fixture(scope="session")
+def horse_rings():
+    """scikit-image's horse silhouette (328 x 400 pixels), traced, y up."""
+    from skimage.data import horse
+
+    return solver.trace_silhouette(horse()[::-1] == 0, tolerance=1.0)
+
+
+@pytest.fixture(scope="session")
+def horse_graph(horse_rings):
+    return solver.build_graph(horse_rings)
+
+
+@pytest.fixture(scope="session")
+def horse_drag(horse_graph):
+    """Hooves pinned, head dragged up and back by a third of the horse's size."""
+    points = horse_graph.points
+    hooves = [region(points, c, 12.0) for c in [(60, 20), (125, 28), (262, 22), (285, 18)]]
+    head = region(points, (370, 240), 20.0)
+    handles = np.concatenate(hooves + [head])
+    targets = points[handles].copy()
+    targets[-len(head):] += [-120.0, 80.0]
+    return handles, targets, len(head)

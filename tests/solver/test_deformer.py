@@ -1,0 +1,213 @@
+"""The deformer: exact handles, exact area, falling energy, real convergence, kept detail."""
+
+import numpy as np
+import pytest
+
+import solver
+from conftest import disk, glyph_rings, region
+
+
+def flipped(graph, positions):
+    a, b, c = (positions[graph.triangles[:, k]] for k in range(3))
+    cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    return int((cross <= 0).sum())
+
+
+def rotation(angle):
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s], [s, c]])
+
+
+def test_rigid_motion_of_all_handles_is_a_rigid_motion(horse_graph, horse_drag):
+    handles = horse_drag[0]
+    points = horse_graph.points
+    moved = points @ rotation(0.7).T + [35.0, -12.0]
+    pose = solver.Deformer(horse_graph, handles).solve(moved[handles])
+    assert np.abs(pose.positions - moved).max() <= 1e-5 * horse_graph.size
+
+
+def test_handles_are_exact_and_energy_never_rises(horse_graph, horse_drag):
+    handles, targets, _ = horse_drag
+    pose = solver.Deformer(horse_graph, handles).solve(targets)
+    assert np.array_equal(pose.positions[handles], targets)
+    assert len(pose.energies) == pose.iterations
+    assert np.all(np.diff(pose.energies) <= 0.0)
+    assert np.all(np.isfinite(pose.positions))
+
+
+def test_default_solve_is_converged_within_15_iterations(horse_graph, horse_drag):
+    """A large drag on a horse-sized shape: the paper's plain iteration is still 5% off after
+    200 iterations here; the default solve must be within 1e-3 of the size in at most 15."""
+    handles, targets, _ = horse_drag
+    deformer = solver.Deformer(horse_graph, handles)
+    converged = deformer.solve(targets, max_iterations=500, tolerance=1e-13)
+    pose = deformer.solve(targets)
+    assert pose.converged and pose.iterations <= 15
+    assert np.abs(pose.positions - converged.positions).max() <= 1e-3 * horse_graph.size
+    assert flipped(horse_graph, pose.positions) == 0
+
+
+def test_tolerance_zero_runs_exactly_max_iterations(horse_graph, horse_drag):
+    handles, targets, _ = horse_drag
+    pose = solver.Deformer(horse_graph, handles).solve(targets, max_iterations=40, tolerance=0.0)
+    assert pose.iterations == 40 and len(pose.energies) == 40
+
+
+@pytest.mark.parametrize("rings_name", ["horse", "glyph"])
+def test_global_area_is_exact(rings_name, horse_graph, horse_drag):
+    if rings_name == "horse":
+        graph, (handles, targets, _) = horse_graph, horse_drag
+    else:  # a letter with two holes: its area is the outline minus the holes
+        graph = solver.build_graph(glyph_rings("B"))
+        left = np.flatnonzero(graph.points[:, 0] < graph.points[:, 0].min() + 0.6)
+        right = np.flatnonzero(graph.points[:, 0] > graph.points[:, 0].max() - 0.6)
+        handles = np.concatenate([left, right])
+        targets = graph.points[handles].copy()
+        targets[len(left):, 0] += 4.0  # stretch the letter
+    pose = solver.Deformer(graph, handles, preserve_area=True).solve(targets)
+    assert abs(graph.area(pose.positions) / graph.area() - 1.0) <= 1e-9
+    assert np.array_equal(pose.positions[handles], targets)
+    assert np.all(np.diff(pose.energies) <= 0.0)
+    free = solver.Deformer(graph, handles).solve(targets)
+    assert abs(graph.area(free.positions) / graph.area() - 1.0) > 1e-6  # the constraint did something
+
+
+def test_pose_depends_on_targets_only(horse_graph, horse_drag):
+    """A render farm renders frames out of order: frame 30 must not depend on frames 1-29."""
+    handles, targets, head = horse_drag
+    deformer = solver.Deformer(horse_graph, handles)
+    rest = horse_graph.points[handles]
+    frames = [rest + (targets - rest) * t for t in np.linspace(0, 1, 31)[1:]]
+    jumped = deformer.solve(frames[-1]).positions
+    for frame in frames:  # played in order, as in the viewport
+        played = deformer.solve(frame).positions
+    assert np.abs(played - jumped).max() <= 1e-3 * horse_graph.size
+
+
+def test_warm_start_on_a_moderate_drag_reaches_the_same_pose(horse_graph, horse_drag):
+    handles, targets, head = horse_drag
+    deformer = solver.Deformer(horse_graph, handles)
+    rest = horse_graph.points[handles]
+    goal = rest.copy()
+    goal[-head:] += [-40.0, 30.0]
+    jumped = deformer.solve(goal).positions
+    pose = None
+    for t in np.linspace(0, 1, 31)[1:]:
+        pose = deformer.solve(rest + (goal - rest) * t, initial=None if pose is None else pose.positions)
+    assert np.abs(pose.positions - jumped).max() <= 1e-3 * horse_graph.size
+
+
+def bumpy_bar(length=10.0, bumps=(3.0, 5.0, 7.0), height=0.3, width=0.8):
+    """A 10 x 1 bar with round bumps on its top edge; returns the ring and bump apex/base x."""
+    top = [np.array([length, 1.0])]
+    for x in sorted(bumps, reverse=True):
+        t = np.linspace(1.0, 0.0, 9)
+        top.append(np.stack([x - width / 2 + width * t, 1.0 + height * np.sin(np.pi * t)], axis=1))
+    top.append(np.array([[0.0, 1.0]]))
+    bottom = np.stack([np.linspace(0, length, 41)[:-1], np.zeros(40)], axis=1)
+    ring = np.concatenate([bottom, np.vstack(top)])
+    return ring
+
+
+def bump_heights(positions, graph, bumps=(3.0, 5.0, 7.0), width=0.8, rest=None):
+    rest = graph.points if rest is None else rest
+    heights = []
+    for x in bumps:
+        apex = np.argmin(np.linalg.norm(rest - [x, 1.3], axis=1))
+        left = np.argmin(np.linalg.norm(rest - [x - width / 2, 1.0], axis=1))
+        right = np.argmin(np.linalg.norm(rest - [x + width / 2, 1.0], axis=1))
+        base = positions[right] - positions[left]
+        offset = positions[apex] - positions[left]
+        heights.append(abs(base[0] * offset[1] - base[1] * offset[0]) / np.linalg.norm(base))
+    return np.array(heights)
+
+
+def test_bumps_keep_their_size_on_a_bar_bent_90_degrees():
+    graph = solver.build_graph([bumpy_bar()], spacing=0.2)
+    points = graph.points
+    left = np.flatnonzero(points[:, 0] <= 0.5)
+    right = np.flatnonzero(points[:, 0] >= 9.5)
+    radius = 10.0 / (np.pi / 2)  # the bottom edge becomes a quarter circle
+    angle = points[right, 0] / radius
+    bent = np.stack([(radius + points[right, 1]) * np.sin(angle),
+                     (radius + points[right, 1]) * np.cos(angle) - radius], axis=1)
+    handles = np.concatenate([left, right])
+    targets = np.concatenate([points[left], bent])
+    pose = solver.Deformer(graph, handles).solve(targets)
+    rest_heights = bump_heights(points, graph)
+    heights = bump_heights(pose.positions, graph)
+    assert np.allclose(rest_heights, 0.3, rtol=0.05)
+    assert np.all(np.abs(heights / rest_heights - 1.0) <= 0.15), heights / rest_heights
+    assert flipped(graph, pose.positions) == 0
+
+
+def test_extreme_drags_stay_finite(horse_graph, horse_drag):
+    handles, targets, head = horse_drag
+    far = targets.copy()
+    far[-head:] += 100.0 * horse_graph.size
+    for area in (False, True):
+        pose = solver.Deformer(horse_graph, handles, preserve_area=area).solve(far)
+        assert np.all(np.isfinite(pose.positions))
+        assert np.array_equal(pose.positions[handles], far)
+
+
+def test_islands_without_handles_stay_put():
+    rings = glyph_rings("i")  # dot and stem: two islands
+    graph = solver.build_graph(rings)
+    labels = graph.components()
+    stem = labels == labels[np.argmin(graph.points[:, 1])]
+    handles = np.flatnonzero(stem & (graph.points[:, 1] < 0.5))
+    pose = solver.Deformer(graph, handles).solve(graph.points[handles] + [1.0, 0.0])
+    assert np.array_equal(pose.positions[~stem], graph.points[~stem])
+    assert np.all(pose.positions[stem, 0] > graph.points[stem, 0])
+
+
+def test_weights_change_the_result_and_bad_weights_are_refused(horse_graph, horse_drag):
+    handles, targets, _ = horse_drag
+    a = solver.Deformer(horse_graph, handles).solve(targets).positions
+    b = solver.Deformer(horse_graph, handles, weights={"edge": 10.0}).solve(targets).positions
+    assert np.abs(a - b).max() > 1e-3 * horse_graph.size
+    with pytest.raises(ValueError, match="unknown energy term"):
+        solver.Deformer(horse_graph, handles, weights={"bending": 1.0})
+    with pytest.raises(ValueError, match="weight"):
+        solver.Deformer(horse_graph, handles, weights={"mvc": -1.0})
+
+
+@pytest.mark.parametrize("targets, message", [
+    (np.full((3, 2), np.nan), "non-finite"),
+    (np.full((3, 2), np.inf), "non-finite"),
+    (np.zeros((2, 2)), "shape"),
+])
+def test_bad_targets_are_refused(targets, message):
+    graph = solver.build_graph([disk()])
+    deformer = solver.Deformer(graph, [0, 1, 2])
+    with pytest.raises(ValueError, match=message):
+        deformer.solve(targets)
+
+
+def test_bad_handles_are_refused():
+    graph = solver.build_graph([disk()])
+    with pytest.raises(ValueError, match="handle indices"):
+        solver.Deformer(graph, [0, graph.n])
+    with pytest.raises(ValueError, match="twice"):
+        solver.Deformer(graph, [3, 3])
+    with pytest.raises(ValueError, match="boundary point"):
+        solver.Deformer(graph, graph.boundary, preserve_area=True)
+
+
+def test_a_mesh_can_be_its_own_graph():
+    """A user's quad grid: its boundary loop given clockwise, its own edges, no triangles."""
+    x, y = np.meshgrid(np.arange(6.0), np.arange(4.0))
+    points = np.stack([x.ravel(), y.ravel()], axis=1)
+    index = np.arange(24).reshape(4, 6)
+    edges = np.concatenate([np.stack([index[:, :-1].ravel(), index[:, 1:].ravel()], 1),
+                            np.stack([index[:-1].ravel(), index[1:].ravel()], 1)])
+    loop = np.concatenate([index[0], index[1:, -1], index[-1, ::-1][1:], index[::-1, 0][1:-1]])
+    graph = solver.Graph(points, edges, [loop[::-1]])
+    assert graph.area() == pytest.approx(15.0)
+    assert len(graph.triangles) == 30
+    handles = np.concatenate([index[:, 0], index[:, -1]])
+    targets = points[handles] + np.where(points[handles, :1] > 0, [0.0, 2.0], [0.0, 0.0])
+    pose = solver.Deformer(graph, handles).solve(targets)
+    assert pose.converged and np.all(np.isfinite(pose.positions))
+    assert flipped(graph, pose.positions) == 0

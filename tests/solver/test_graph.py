@@ -1,0 +1,59 @@
+"""The interior graph: a conforming, counter-clockwise triangulation with MVC-ready neighbours."""
+
+import numpy as np
+import pytest
+
+import solver
+from solver.energy import mean_value_weights
+from conftest import disk, glyph_rings
+
+
+def triangle_areas(graph):
+    a, b, c = (graph.points[graph.triangles[:, k]] for k in range(3))
+    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+
+@pytest.mark.parametrize("name", ["disk", "glyph", "horse"])
+def test_triangles_tile_the_shape_exactly(name, horse_rings):
+    rings = {"disk": [disk()], "glyph": glyph_rings("B&g"), "horse": horse_rings}[name]
+    graph = solver.build_graph(rings)
+    areas = triangle_areas(graph)
+    assert np.all(areas > 0)  # counter-clockwise, none flat
+    assert areas.sum() == pytest.approx(graph.area(), rel=1e-9)
+    # Every boundary segment is a triangle edge (the triangulation conforms).
+    tri_edges = {tuple(sorted(e)) for t in graph.triangles for e in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))}
+    for loop in graph.boundary_loops:
+        for i, j in zip(loop, np.roll(loop, -1)):
+            assert tuple(sorted((i, j))) in tri_edges
+    assert len(graph.interior) > 0 and len(graph.interior) + len(graph.boundary) == graph.n
+
+
+def test_spacing_controls_density():
+    coarse = solver.build_graph([disk()], spacing=0.3)
+    fine = solver.build_graph([disk()], spacing=0.1)
+    assert len(fine.interior) > 5 * len(coarse.interior)
+    default = solver.build_graph([disk()])
+    assert 200 <= len(default.interior) <= 500
+
+
+def test_mean_value_coordinates_reproduce_interior_points(horse_graph):
+    adjacency = horse_graph.adjacency()[horse_graph.interior]
+    weights = mean_value_weights(horse_graph.points, horse_graph.interior,
+                                 adjacency.indices.astype(np.int64), adjacency.indptr.astype(np.int64))
+    assert np.all(weights > 0)
+    owner = np.repeat(np.arange(len(horse_graph.interior)), np.diff(adjacency.indptr))
+    rebuilt = np.zeros((len(horse_graph.interior), 2))
+    np.add.at(rebuilt, owner, weights[:, None] * horse_graph.points[adjacency.indices])
+    assert np.abs(rebuilt - horse_graph.points[horse_graph.interior]).max() < 1e-9 * horse_graph.size
+
+
+def test_graph_validation():
+    points = np.array([[0, 0], [1, 0], [0, 1], [5, 5]], float)
+    with pytest.raises(ValueError, match="no edges"):
+        solver.Graph(points, [[0, 1]], [[0, 1, 2]])
+    with pytest.raises(ValueError, match="non-finite"):
+        solver.Graph(np.full((3, 2), np.nan), [], [[0, 1, 2]])
+    with pytest.raises(ValueError, match="do not exist"):
+        solver.Graph(points[:3], [[0, 7]], [[0, 1, 2]])
+    with pytest.raises(ValueError, match="boundary loop"):
+        solver.Graph(points[:3], [], [])
