@@ -19,3 +19,9 @@ from .graph import Graph, build_graph
 from .trace import trace_silhouette
 
 __all__ = ["Graph", "build_graph", "Deformer", "Solution", "trace_silhouette", "bind", "Binding"]
+
+# Rigging helpers for the Blender add-on (plane fitting, handles, outlines, silhouettes).
+from . import handles, outline, plane, silhouette  # noqa: E402
+from .plane import Plane, fit_plane  # noqa: E402
+
+__all__ += ["plane", "handles", "outline", "silhouette", "Plane", "fit_plane"]

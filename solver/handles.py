@@ -1,0 +1,196 @@
+"""Handles as the animator sees them: a movable frame that carries a small region of the shape.
+
+A handle is an object with a transform (in Blender an Empty). It owns a few graph points near
+it, its *region*, so dragging it moves a patch of the shape rather than spiking one vertex, and
+turning or scaling it turns or scales that patch. Each region point is stored as an *offset* in
+the handle's own 2D frame; the targets given to the deformer are those offsets carried by the
+handle's current frame. Frames are 2D affine maps, 3x3 matrices acting on ``(x, y, 1)``.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from .binding import bind
+
+__all__ = ["frame_2d", "handle_matrix", "apply_affine", "invert_affine", "select_region",
+           "region_offsets", "region_targets", "rest_position", "REGION_FRACTION"]
+
+# Default region radius as a fraction of the shape's size (bounding-box diagonal).
+REGION_FRACTION = 0.04
+# Fewest graph points in a region: three points fix a patch's rotation as well as its place.
+MIN_REGION_POINTS = 3
+
+
+def frame_2d(plane, matrix):
+    """The 2D frame of a handle: its origin and X, Y axes projected into the plane.
+
+    Parameters
+    ----------
+    plane : solver.plane.Plane
+        The shape's plane, in the same space as ``matrix`` (the shape object's local space).
+    matrix : (4, 4) array_like
+        The handle's transform in that space.
+
+    Returns
+    -------
+    (3, 3) float64 ndarray
+        Affine map from handle coordinates to plane coordinates.
+    """
+    matrix = np.asarray(matrix, dtype=np.float64)
+    frame = np.eye(3)
+    frame[:2, :2] = plane.axes[:2] @ matrix[:3, :2]
+    frame[:2, 2] = plane.to_2d(matrix[None, :3, 3])[0]
+    return frame
+
+
+def handle_matrix(plane, point, scale=1.0):
+    """Transform of a handle placed at plane ``point`` with its X, Y axes along the plane's.
+
+    Parameters
+    ----------
+    plane : solver.plane.Plane
+    point : (2,) array_like
+        Position in plane coordinates.
+    scale : float
+        Length of the handle's axes.
+
+    Returns
+    -------
+    (4, 4) float64 ndarray
+        In the plane's 3D space; its Z axis is the plane's normal.
+    """
+    matrix = np.eye(4)
+    matrix[:3, :3] = scale * plane.axes.T
+    matrix[:3, 3] = plane.to_3d(np.asarray(point, dtype=np.float64)[None])[0]
+    return matrix
+
+
+def apply_affine(affine, points):
+    """Apply 3x3 affine map(s) to 2D points.
+
+    Parameters
+    ----------
+    affine : (3, 3) or (p, 3, 3) array_like
+        One map for all points, or one per point.
+    points : (p, 2) array_like
+
+    Returns
+    -------
+    (p, 2) float64 ndarray
+    """
+    affine = np.asarray(affine, dtype=np.float64)
+    points = np.asarray(points, dtype=np.float64)
+    if affine.ndim == 2:
+        return points @ affine[:2, :2].T + affine[:2, 2]
+    return np.einsum("pij,pj->pi", affine[:, :2, :2], points) + affine[:, :2, 2]
+
+
+def invert_affine(affine):
+    """Inverse of a 3x3 affine map; ValueError if it flattens the plane (a zero-scale handle)."""
+    affine = np.asarray(affine, dtype=np.float64)
+    determinant = float(np.linalg.det(affine[:2, :2]))
+    scale = float(np.abs(affine[:2, :2]).max())
+    if not np.isfinite(determinant) or abs(determinant) <= 1e-12 * max(scale, 1e-300) ** 2:
+        raise ValueError("the handle's frame is degenerate (zero scale, or turned edge-on to the plane)")
+    return np.linalg.inv(affine)
+
+
+def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS):
+    """Graph points a handle at ``centre`` owns.
+
+    Parameters
+    ----------
+    points : (n, 2) array_like
+        Graph points (rest positions).
+    centre : (2,) array_like
+    radius : float
+        Points closer than this belong to the region; if fewer than ``minimum`` are, the
+        ``minimum`` nearest free points do.
+    taken : (n,) bool array_like, optional
+        Points already owned by other handles: never selected (the deformer takes each point as
+        a handle once).
+    minimum : int
+
+    Returns
+    -------
+    (k,) int64 ndarray
+        Sorted by distance from ``centre``, nearest first.
+
+    Raises
+    ------
+    ValueError
+        Every point is taken.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    distance = np.linalg.norm(points - np.asarray(centre, dtype=np.float64), axis=1)
+    if taken is not None:
+        distance = np.where(np.asarray(taken, dtype=bool), np.inf, distance)
+    order = np.argsort(distance, kind="stable")
+    free = int(np.isfinite(distance).sum())
+    if free == 0:
+        raise ValueError("every point of the shape already belongs to a handle")
+    inside = int((distance < radius).sum())
+    count = min(max(inside, minimum), free)
+    return order[:count]
+
+
+def region_offsets(frame, positions):
+    """Region points in a handle's own coordinates, so the handle's frame carries them.
+
+    Parameters
+    ----------
+    frame : (3, 3) array_like
+        The handle's frame when the region was taken.
+    positions : (k, 2) array_like
+        The region points' positions at that moment.
+
+    Returns
+    -------
+    (k, 2) float64 ndarray
+    """
+    return apply_affine(invert_affine(frame), positions)
+
+
+def region_targets(frames, offsets, owners):
+    """Deformer targets of all region points.
+
+    Parameters
+    ----------
+    frames : (h, 3, 3) array_like
+        Each handle's current frame.
+    offsets : (m, 2) array_like
+        Every region point's offset (see :func:`region_offsets`), handle after handle.
+    owners : (m,) array_like of int
+        The handle each offset belongs to.
+
+    Returns
+    -------
+    (m, 2) float64 ndarray
+    """
+    frames = np.asarray(frames, dtype=np.float64).reshape(-1, 3, 3)
+    return apply_affine(frames[np.asarray(owners, dtype=np.int64)], offsets)
+
+
+def rest_position(rest_points, posed_points, triangles, query):
+    """Where posed points came from: the rest positions of points given on the posed shape.
+
+    Each query point is located in the posed triangulation (the nearest triangle if it lies
+    outside) and carried back by its barycentric weights.
+
+    Parameters
+    ----------
+    rest_points, posed_points : (n, 2) array_like
+        Graph points at rest and posed.
+    triangles : (t, 3) array_like of int
+    query : (q, 2) array_like
+
+    Returns
+    -------
+    (q, 2) float64 ndarray
+    """
+    posed = SimpleNamespace(points=np.asarray(posed_points, dtype=np.float64),
+                            triangles=np.asarray(triangles, dtype=np.int64), n=len(posed_points))
+    return bind(posed, np.asarray(query, dtype=np.float64).reshape(-1, 2)).apply(rest_points)

@@ -1,0 +1,72 @@
+"""solver.handles: frames of handles, regions, and targets that carry regions."""
+
+import numpy as np
+import pytest
+
+import solver
+from solver.handles import (apply_affine, frame_2d, handle_matrix, invert_affine, region_offsets,
+                            region_targets, rest_position, select_region)
+from solver.plane import fit_plane
+
+from conftest import disk
+
+
+@pytest.fixture
+def xz_plane():
+    return fit_plane(np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 1.0]]))
+
+
+def test_handle_matrix_frame_round_trip(xz_plane):
+    matrix = handle_matrix(xz_plane, [0.25, 0.75], scale=2.0)
+    frame = frame_2d(xz_plane, matrix)
+    np.testing.assert_allclose(frame, [[2, 0, 0.25], [0, 2, 0.75], [0, 0, 1]], atol=1e-12)
+
+
+def test_turning_the_handle_about_the_normal_turns_its_frame(xz_plane):
+    matrix = handle_matrix(xz_plane, [0.0, 0.0])
+    angle = 0.3
+    c, s = np.cos(angle), np.sin(angle)
+    # A rotation about the plane normal, written in 3D.
+    n = xz_plane.normal
+    k = np.array([[0, -n[2], n[1]], [n[2], 0, -n[0]], [-n[1], n[0], 0]])
+    turn = np.eye(4)
+    turn[:3, :3] = np.eye(3) + s * k + (1 - c) * k @ k
+    frame = frame_2d(xz_plane, turn @ matrix)
+    np.testing.assert_allclose(frame[:2, :2], [[c, -s], [s, c]], atol=1e-12)
+
+
+def test_offsets_and_targets_carry_a_region():
+    points = np.array([[0, 0], [1, 0], [0, 1.0]])
+    rest = np.eye(3)
+    offsets = region_offsets(rest, points)
+    moved = np.array([[0, -1, 5], [1, 0, 2], [0, 0, 1.0]])  # a quarter turn and a shift
+    targets = region_targets(moved[None], offsets, np.zeros(3, int))
+    np.testing.assert_allclose(targets, apply_affine(moved, points))
+    np.testing.assert_allclose(targets[1], [5, 3])
+
+
+def test_degenerate_frame_is_refused():
+    with pytest.raises(ValueError, match="degenerate"):
+        invert_affine(np.diag([1.0, 0.0, 1.0]))
+
+
+def test_select_region_respects_radius_minimum_and_taken():
+    points = disk(1.0, 32)
+    region = select_region(points, points[0], radius=1e-6)
+    assert len(region) == 3 and region[0] == 0
+    big = select_region(points, [0, 0], radius=2.0)
+    assert len(big) == 32
+    taken = np.zeros(32, bool)
+    taken[:2] = True
+    region = select_region(points, points[0], radius=0.3, taken=taken)
+    assert not np.isin([0, 1], region).any()
+    with pytest.raises(ValueError, match="already belongs"):
+        select_region(points, [0, 0], 1.0, taken=np.ones(32, bool))
+
+
+def test_rest_position_inverts_a_pose():
+    graph = solver.build_graph([disk(1.0, 48)])
+    posed = graph.points * [2.0, 1.0] + [3.0, 0.0]
+    query = np.array([[3.5, 0.2], [2.0, -0.4]])
+    np.testing.assert_allclose(rest_position(graph.points, posed, graph.triangles, query),
+                               [[0.25, 0.2], [-0.5, -0.4]], atol=1e-12)

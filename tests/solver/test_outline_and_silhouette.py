@@ -1,0 +1,96 @@
+"""solver.outline and solver.silhouette: mesh boundaries, Bezier outlines, stroke and image
+silhouettes, and the affine fit used to map a picture's UVs onto its cut-out."""
+
+import numpy as np
+import pytest
+import shapely
+
+from solver.handles import apply_affine
+from solver.outline import boundary_loops, sample_bezier, spacing_for_count
+from solver.shapes import shape_geometry
+from solver.silhouette import fit_affine, image_cutout, stroke_silhouette
+
+from conftest import disk
+
+
+def grid_triangles(nx, ny):
+    index = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)
+    a, b, c, d = index[:-1, :-1].ravel(), index[:-1, 1:].ravel(), index[1:, 1:].ravel(), index[1:, :-1].ravel()
+    return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+
+
+def test_boundary_loops_of_a_grid_with_a_hole():
+    triangles = grid_triangles(3, 3)
+    # Drop the middle square's two triangles: a hole.
+    keep = ~np.isin(np.arange(len(triangles)), [4, 13])
+    loops = boundary_loops(triangles[keep])
+    assert sorted(len(loop) for loop in loops) == [4, 12]
+
+
+def test_boundary_loops_refuse_closed_and_nonmanifold():
+    tetrahedron = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]])
+    with pytest.raises(ValueError, match="no boundary"):
+        boundary_loops(tetrahedron)
+    bowtie = np.array([[0, 1, 2], [0, 3, 4]])
+    with pytest.raises(ValueError, match="not manifold"):
+        boundary_loops(bowtie)
+    with pytest.raises(ValueError, match="no faces"):
+        boundary_loops(np.empty((0, 3), int))
+
+
+def test_bezier_sampling_hits_control_points_and_is_a_circle():
+    # Blender's Bezier circle: 4 points, handles at 0.5523 of the radius.
+    k = 0.5522847498
+    points = np.array([[1, 0], [0, 1], [-1, 0], [0, -1.0]])
+    tangent = np.array([[0, 1], [-1, 0], [0, -1], [1, 0.0]])
+    curve = sample_bezier(points, points - k * tangent, points + k * tangent, cyclic=True, resolution=8)
+    assert len(curve) == 32
+    np.testing.assert_allclose(curve[::8], points)
+    np.testing.assert_allclose(np.linalg.norm(curve, axis=1), 1.0, atol=3e-4)
+    open_curve = sample_bezier(points, points - k * tangent, points + k * tangent, cyclic=False, resolution=8)
+    assert len(open_curve) == 25 and np.allclose(open_curve[-1], points[-1])
+
+
+def test_spacing_for_count():
+    spacing = spacing_for_count([disk(1.0, 256)], 100)
+    assert spacing == pytest.approx(np.sqrt(np.pi / 100), rel=1e-3)
+
+
+def test_stroke_silhouette_is_the_swept_and_filled_union():
+    line = np.array([[0, 0], [4, 0.0]])
+    ring = disk(1.0, 32, centre=(8, 0))
+    points = np.concatenate([line, ring])
+    rings = stroke_silhouette(points, [0, 2, 34], radii=np.full(34, 0.5), cyclic=[False, True])
+    area = shape_geometry(rings).area
+    expected = 4 * 1.0 + np.pi * 0.25 + shapely.Polygon(ring).buffer(0.5, quad_segs=4).area
+    assert area == pytest.approx(expected, rel=0.02)
+    assert len(rings) == 2  # two islands, no holes: the fill covers the ring's inside
+
+
+def test_stroke_silhouette_refuses_nothing():
+    with pytest.raises(ValueError, match="zero radius"):
+        stroke_silhouette(np.array([[0, 0], [1, 0.0]]), [0, 2], np.zeros(2))
+
+
+def test_image_cutout_covers_every_visible_pixel_and_stays_in_the_picture():
+    image = np.zeros((40, 60, 4), np.float32)
+    yy, xx = np.mgrid[:40, :60]
+    visible = (xx - 30) ** 2 + (yy - 20) ** 2 < 15 ** 2
+    visible &= ~((xx - 30) ** 2 + (yy - 20) ** 2 < 5 ** 2)   # a ring: the cut-out has a hole
+    visible |= (xx < 3) & (yy < 3)                            # touching the picture's corner
+    image[..., 3] = visible * 0.8
+    shape = shape_geometry(image_cutout(image))
+    centres = shapely.points(xx[visible] + 0.5, yy[visible] + 0.5)
+    pixels = shapely.box(xx[visible], yy[visible], xx[visible] + 1, yy[visible] + 1)
+    assert shapely.contains(shape.buffer(1e-9), pixels).all()
+    assert shapely.box(0, 0, 60, 40).buffer(1e-9).contains(shape)
+    assert not shape.contains(shapely.Point(30, 20))  # the hole stays a hole
+    assert len(centres) > 0
+
+
+def test_fit_affine_recovers_a_map():
+    source = np.array([[0, 0], [1, 0], [0, 1], [1, 1.0]])
+    affine = np.array([[2, 1, 3], [0, 0.5, -1], [0, 0, 1.0]])
+    np.testing.assert_allclose(fit_affine(source, apply_affine(affine, source)), affine, atol=1e-12)
+    with pytest.raises(ValueError, match="one line"):
+        fit_affine(np.array([[0, 0], [1, 1], [2, 2.0]]), np.zeros((3, 2)))
