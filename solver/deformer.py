@@ -26,9 +26,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import qdldl
 from scipy.sparse import identity, triu
+from scipy.spatial import cKDTree
 
 from .energy import Energy, similarity_rows
-from .hessian import Hessian
+from .hessian import Hessian, PaperMatrix
 
 __all__ = ["Deformer", "Solution", "DEFAULT_MAX_ITERATIONS", "DEFAULT_TOLERANCE"]
 
@@ -37,8 +38,11 @@ DEFAULT_MAX_ITERATIONS = 30
 DEFAULT_TOLERANCE = 1e-4
 # Newton steps (refactorisations) at most per solve, taken while steps are larger than
 # NEWTON_UNTIL times the shape's size; then L-BFGS reuses the last factor.
-NEWTON_STEPS = 6
+NEWTON_STEPS = 4
 NEWTON_UNTIL = 1e-3
+# Above this many points the coupled Newton matrix fills in too much to refactor: such graphs
+# iterate with the paper's constant matrix (one factorisation, back-substitutions only).
+NEWTON_MAX_POINTS = 8000
 # The area constraint's curvature is not in the Newton matrix (adding it makes the matrix
 # indefinite), so constrained solves lean on more Newton steps.
 NEWTON_STEPS_WITH_AREA = 12
@@ -159,7 +163,13 @@ class Deformer:
 
         if len(self.free):
             self._free_transpose = self.energy.matrix.tocsc()[:, self.free].T.tocsr()
-            self._hessian = Hessian(self.energy, self.free)
+            self._coarse = None
+            if graph.n <= NEWTON_MAX_POINTS:
+                self._hessian = Hessian(self.energy, self.free)
+            else:
+                self._hessian = PaperMatrix(self.energy, self.free)
+                self._coarse = _CoarseStart(graph, handles, weights, preserve_area)
+        if len(self.free) and self._coarse is None:
             # The similarity system for the start (see energy.similarity_rows), x and y stacked.
             similarity = similarity_rows(graph.points, graph.triangles).tocsc()
             stacked_free = np.concatenate([self.free, graph.n + self.free])
@@ -190,7 +200,10 @@ class Deformer:
         positions[self._resting] = rest[self._resting]
         positions[self.handles] = targets
         if initial is None and len(self.free):
-            positions = self._similar_start(positions)
+            if self._coarse is not None:
+                positions[self.free] = self._coarse.start(targets)[self.free]
+            else:
+                positions = self._similar_start(positions)
         return positions
 
     def _similar_start(self, positions):
@@ -250,9 +263,11 @@ class Deformer:
         direction = None
         hessian = self._hessian
         newton_limit = NEWTON_STEPS if area is None else NEWTON_STEPS_WITH_AREA
+        if isinstance(hessian, PaperMatrix):
+            newton_limit = 0
         rows_now = self.energy.matrix @ positions
         hessian.factorize(rows_now)
-        newton_steps = 1
+        newton_steps = 1 if newton_limit else 0
         if area is not None:
             direction = self._area_direction(positions)
             area.restore(positions, direction)
@@ -372,6 +387,33 @@ class Deformer:
                     return trial, trial_energy, residual, rows_now
             alpha *= 0.5
         return None
+
+
+class _CoarseStart:
+    """The pose of a coarse copy of the shape, carried to a large graph's points.
+
+    A large graph iterates with the paper's constant matrix, which is slow to turn free limbs
+    (see :mod:`solver.hessian`). A graph of a few hundred points built from the same boundary
+    solves with Newton steps in milliseconds and gets those turns right; the fine iterations
+    then only fix local detail, which the constant matrix does well.
+    """
+
+    def __init__(self, graph, handles, weights, preserve_area):
+        from .binding import bind
+        from .graph import build_graph
+
+        self.graph = build_graph([graph.points[loop] for loop in graph.boundary_loops])
+        rest = graph.points[handles]
+        # Each coarse point nearest a handle point follows that handle point's target.
+        _, nearest = cKDTree(self.graph.points).query(rest)
+        self.coarse_handles, self.first = np.unique(nearest, return_index=True)
+        self.offset = self.graph.points[self.coarse_handles] - rest[self.first]
+        self.deformer = Deformer(self.graph, self.coarse_handles, weights, preserve_area)
+        self.binding = bind(self.graph, graph.points)
+
+    def start(self, targets):
+        coarse = self.deformer.solve(targets[self.first] + self.offset)
+        return self.binding.apply(coarse.positions)
 
 
 @dataclass

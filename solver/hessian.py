@@ -63,22 +63,34 @@ class Hessian:
         self._edge_points = edges                                   # (e, 2)
         loops = energy.curve_points                                 # (m, 3): here, before, after
         self._group_points = loops
-        rows, cols = [], []
+        # Every term's vector u is laid out flat: edge terms first (4 entries each), then curve
+        # groups (6 each). An entry of c u u^T is coefficient[term] * u[a] * u[b]; we keep only the
+        # upper-triangle entries between free unknowns and remember their flat indices.
+        rows, cols, first, second, owner = [], [], [], [], []
+        offset, term_offset = 0, 0
         for points in (self._edge_points, self._group_points):
             stacked = np.concatenate([slot[points], slot[points] + f], axis=1)
             stacked[np.concatenate([slot[points], slot[points]], axis=1) < 0] = -1
-            k = stacked.shape[1]
+            count, k = stacked.shape
+            flat = offset + np.arange(count * k).reshape(count, k)
             rows.append(np.repeat(stacked, k, axis=1).ravel())
             cols.append(np.tile(stacked, (1, k)).ravel())
+            first.append(np.repeat(flat, k, axis=1).ravel())
+            second.append(np.tile(flat, (1, k)).ravel())
+            owner.append(np.repeat(term_offset + np.arange(count), k * k))
+            offset += count * k
+            term_offset += count
         rows, cols = np.concatenate(rows), np.concatenate(cols)
-        # Upper triangle only (qdldl reads it), and only entries between free unknowns.
         keep = (rows >= 0) & (cols >= 0) & (rows <= cols)
-        self._keep = keep
+        rows, cols = rows[keep], cols[keep]
+        self._first = np.concatenate(first)[keep]
+        self._second = np.concatenate(second)[keep]
+        self._owner = np.concatenate(owner)[keep]
         upper = triu(base, format="coo")
         # Build the pattern from coordinates only: adding sparse matrices is not safe here, as
         # scipy's sum assumes canonical (sorted, duplicate-free) operands and triu's are not.
-        all_rows = np.concatenate([upper.row, rows[keep]]).astype(np.int64)
-        all_cols = np.concatenate([upper.col, cols[keep]]).astype(np.int64)
+        all_rows = np.concatenate([upper.row, rows]).astype(np.int64)
+        all_cols = np.concatenate([upper.col, cols]).astype(np.int64)
         shape = coo_matrix((np.ones(len(all_rows)), (all_rows, all_cols)), shape=(2 * f, 2 * f)).tocsc()
         shape.sum_duplicates()
         shape.sort_indices()
@@ -88,7 +100,7 @@ class Hessian:
         locate = lambda r, c: np.searchsorted(keys, r + shape.shape[0] * c)
         self._base = np.bincount(locate(upper.row.astype(np.int64), upper.col.astype(np.int64)),
                                  weights=upper.data, minlength=shape.nnz)
-        self._positions = locate(rows[keep], cols[keep])
+        self._positions = locate(rows, cols)
         self._factor = None
 
     def matrix(self, rows_now):
@@ -98,9 +110,10 @@ class Hessian:
         -------
         (2 f, 2 f) scipy.sparse.csc_matrix
         """
-        vectors = [self._edge_terms(rows_now), self._group_terms(rows_now)]
-        values = np.concatenate([(c[:, None, None] * u[:, :, None] * u[:, None, :]).reshape(-1)
-                                 for c, u in vectors])[self._keep]
+        (edge_c, edge_u), (group_c, group_u) = self._edge_terms(rows_now), self._group_terms(rows_now)
+        coefficient = np.concatenate([edge_c, group_c])
+        u = np.concatenate([edge_u.ravel(), group_u.ravel()])
+        values = coefficient[self._owner] * u[self._first] * u[self._second]
         data = self._base - np.bincount(self._positions, weights=values, minlength=len(self._base))
         return csc_matrix((data, self._pattern.indices, self._pattern.indptr), shape=self._pattern.shape)
 
@@ -160,3 +173,25 @@ class Hessian:
         stacked = self._factor.solve(np.concatenate([rhs[:, 0], rhs[:, 1]]))
         half = self.size // 2
         return np.stack([stacked[:half], stacked[half:]], axis=1)
+
+
+class PaperMatrix:
+    """``A_f^T A_f``, the paper's constant matrix of equation (9), factorised once.
+
+    The same factor serves x and y. For large graphs the coupled Newton matrix fills in too much
+    to refactor; this one never changes, so an iteration costs one back-substitution per
+    coordinate, as in the paper. Same interface as :class:`Hessian`.
+    """
+
+    def __init__(self, energy, free):
+        columns = energy.matrix.tocsc()[:, free]
+        stiffness = (columns.T @ columns).tocsc()
+        self._factor = qdldl.Solver(triu(stiffness, format="csc"), upper=True)
+
+    def factorize(self, rows_now):
+        """Nothing to do: the matrix does not depend on the pose."""
+
+    def solve(self, rhs):
+        """Solve for each coordinate; ``rhs`` and the result are (f, 2)."""
+        return np.stack([self._factor.solve(np.ascontiguousarray(rhs[:, 0])),
+                         self._factor.solve(np.ascontiguousarray(rhs[:, 1]))], axis=1)

@@ -211,3 +211,19 @@ def test_a_mesh_can_be_its_own_graph():
     pose = solver.Deformer(graph, handles).solve(targets)
     assert pose.converged and np.all(np.isfinite(pose.positions))
     assert flipped(graph, pose.positions) == 0
+
+
+def test_large_graph_path_converges_from_a_coarse_start(horse_graph, horse_drag, monkeypatch):
+    """Above NEWTON_MAX_POINTS the paper's constant matrix is iterated from a coarse solve;
+    exercised here on the horse by lowering the threshold."""
+    import solver.deformer
+
+    handles, targets, _ = horse_drag
+    newton = solver.Deformer(horse_graph, handles).solve(targets)
+    monkeypatch.setattr(solver.deformer, "NEWTON_MAX_POINTS", 10)
+    deformer = solver.Deformer(horse_graph, handles)
+    pose = deformer.solve(targets, max_iterations=100)
+    assert pose.factorizations == 0
+    assert np.array_equal(pose.positions[handles], targets)
+    assert np.all(np.diff(pose.energies) <= 0.0)
+    assert np.abs(pose.positions - newton.positions).max() <= 2e-2 * horse_graph.size
