@@ -141,7 +141,8 @@ class Deformer:
         point a handle (the area would be fixed by the handles alone).
     """
 
-    def __init__(self, graph, handles, weights=None, preserve_area=False):
+    def __init__(self, graph, handles, weights=None, preserve_area=False, *, _newton=None):
+        # _newton (internal): force the Newton matrix, as the coarse copy of a large graph does.
         self.graph = graph
         handles = np.asarray(handles, dtype=np.int64).ravel()
         if len(handles) and (handles.min() < 0 or handles.max() >= graph.n):
@@ -164,7 +165,7 @@ class Deformer:
         if len(self.free):
             self._free_transpose = self.energy.matrix.tocsc()[:, self.free].T.tocsr()
             self._coarse = None
-            if graph.n <= NEWTON_MAX_POINTS:
+            if _newton or (_newton is None and graph.n <= NEWTON_MAX_POINTS):
                 self._hessian = Hessian(self.energy, self.free)
             else:
                 self._hessian = PaperMatrix(self.energy, self.free)
@@ -408,7 +409,7 @@ class _CoarseStart:
         _, nearest = cKDTree(self.graph.points).query(rest)
         self.coarse_handles, self.first = np.unique(nearest, return_index=True)
         self.offset = self.graph.points[self.coarse_handles] - rest[self.first]
-        self.deformer = Deformer(self.graph, self.coarse_handles, weights, preserve_area)
+        self.deformer = Deformer(self.graph, self.coarse_handles, weights, preserve_area, _newton=True)
         self.binding = bind(self.graph, graph.points)
 
     def start(self, targets):
