@@ -133,6 +133,13 @@ class Deformer:
         Weights of the energy terms ``"laplacian"``, ``"mvc"`` and ``"edge"``.
     preserve_area : bool
         Keep the total area (islands minus holes) equal to the rest area.
+    newton : bool, optional
+        ``True``: each solve takes up to ``NEWTON_STEPS`` projected Newton steps, each a numeric
+        refactorisation (the symbolic analysis is shared), then L-BFGS; converges in ~10
+        iterations. ``False``: the paper's way, ``A_f^T A_f`` factorised once here and never
+        again (moving handles only changes right-hand sides), L-BFGS on it from the pose of a
+        coarse copy of the shape; cheaper per iteration, slower to turn free limbs. By default
+        ``True`` up to ``NEWTON_MAX_POINTS`` points.
 
     Raises
     ------
@@ -141,8 +148,7 @@ class Deformer:
         point a handle (the area would be fixed by the handles alone).
     """
 
-    def __init__(self, graph, handles, weights=None, preserve_area=False, *, _newton=None):
-        # _newton (internal): force the Newton matrix, as the coarse copy of a large graph does.
+    def __init__(self, graph, handles, weights=None, preserve_area=False, newton=None):
         self.graph = graph
         handles = np.asarray(handles, dtype=np.int64).ravel()
         if len(handles) and (handles.min() < 0 or handles.max() >= graph.n):
@@ -165,7 +171,7 @@ class Deformer:
         if len(self.free):
             self._free_transpose = self.energy.matrix.tocsc()[:, self.free].T.tocsr()
             self._coarse = None
-            if _newton or (_newton is None and graph.n <= NEWTON_MAX_POINTS):
+            if newton or (newton is None and graph.n <= NEWTON_MAX_POINTS):
                 self._hessian = Hessian(self.energy, self.free)
             else:
                 self._hessian = PaperMatrix(self.energy, self.free)
@@ -409,7 +415,7 @@ class _CoarseStart:
         _, nearest = cKDTree(self.graph.points).query(rest)
         self.coarse_handles, self.first = np.unique(nearest, return_index=True)
         self.offset = self.graph.points[self.coarse_handles] - rest[self.first]
-        self.deformer = Deformer(self.graph, self.coarse_handles, weights, preserve_area, _newton=True)
+        self.deformer = Deformer(self.graph, self.coarse_handles, weights, preserve_area, newton=True)
         self.binding = bind(self.graph, graph.points)
 
     def start(self, targets):

@@ -214,8 +214,8 @@ def test_a_mesh_can_be_its_own_graph():
 
 
 def test_large_graph_path_converges_from_a_coarse_start(horse_graph, horse_drag, monkeypatch):
-    """Above NEWTON_MAX_POINTS the paper's constant matrix is iterated from a coarse solve;
-    exercised here on the horse by lowering the threshold."""
+    """Above NEWTON_MAX_POINTS the paper's constant matrix is iterated from a coarse solve,
+    never refactorised; exercised here on the horse by lowering the threshold."""
     import solver.deformer
 
     handles, targets, _ = horse_drag
@@ -227,3 +227,14 @@ def test_large_graph_path_converges_from_a_coarse_start(horse_graph, horse_drag,
     assert np.array_equal(pose.positions[handles], targets)
     assert np.all(np.diff(pose.energies) <= 0.0)
     assert np.abs(pose.positions - newton.positions).max() <= 2e-2 * horse_graph.size
+
+
+def test_paper_matrix_mode_never_refactorises(horse_graph, horse_drag):
+    handles, targets, _ = horse_drag
+    deformer = solver.Deformer(horse_graph, handles, newton=False)
+    factor = deformer._hessian._factor
+    for t in (0.3, 0.6, 1.0):
+        rest = horse_graph.points[handles]
+        pose = deformer.solve(rest + (targets - rest) * t)
+        assert pose.factorizations == 0 and deformer._hessian._factor is factor
+        assert np.array_equal(pose.positions[handles], rest + (targets - rest) * t)
