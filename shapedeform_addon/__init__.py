@@ -1,17 +1,24 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Blender glue for Shape Deform.
 
-Each submodule exposes a ``classes`` tuple; they are registered in the order
-listed here and unregistered in reverse. The numerics live in the sibling,
-Blender-free package and are imported relatively (``from ..solver import ...``).
+Each submodule has a ``classes`` tuple and a ``register``/``unregister`` pair (most from
+``bpy.utils.register_classes_factory``; properties and handlers also attach to Blender types
+and handler lists). They are registered in the order listed here and unregistered in reverse.
+The numerics live in the sibling, Blender-free package ``solver``, imported relatively.
 """
 
-import bpy
+from . import handlers, operators, preferences, properties, ui
 
-from . import preferences
+_modules = (preferences, properties, operators, ui, handlers)
 
-classes = (
-    *preferences.classes,
-)
+classes = tuple(cls for module in _modules for cls in module.classes)
 
-register, unregister = bpy.utils.register_classes_factory(classes)
+
+def register():
+    for module in _modules:
+        module.register()
+
+
+def unregister():
+    for module in reversed(_modules):
+        module.unregister()

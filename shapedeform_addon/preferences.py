@@ -43,3 +43,5 @@ class SHAPEDEFORM_AP_preferences(bpy.types.AddonPreferences):
 classes = (
     SHAPEDEFORM_AP_preferences,
 )
+
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -8,7 +8,7 @@ import numpy as np
 
 from .shapes import shape_geometry
 
-__all__ = ["boundary_loops", "sample_bezier", "spacing_for_count"]
+__all__ = ["boundary_loops", "sample_bezier", "spacing_for_count", "smallest_angles"]
 
 
 def boundary_loops(triangles):
@@ -109,3 +109,27 @@ def spacing_for_count(rings, count):
     if count < 1:
         raise ValueError(f"count must be positive, got {count}")
     return float(np.sqrt(shape_geometry(rings).area / count))
+
+
+def smallest_angles(points, triangles):
+    """Smallest interior angle of each triangle, in radians: how far from a sliver it is.
+
+    Parameters
+    ----------
+    points : (n, 2) array_like
+    triangles : (t, 3) array_like of int
+
+    Returns
+    -------
+    (t,) float64 ndarray
+        0 for a degenerate triangle.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    corners = points[np.asarray(triangles, dtype=np.int64).reshape(-1, 3)]
+    sides = np.roll(corners, -1, axis=1) - corners          # edge k runs from corner k to k + 1
+    lengths = np.linalg.norm(sides, axis=2)
+    a, b = -np.roll(sides, 1, axis=1), sides                 # the two edges leaving each corner
+    cosine = np.einsum("tki,tki->tk", a, b) / np.maximum(np.roll(lengths, 1, axis=1) * lengths, 1e-300)
+    angles = np.arccos(np.clip(cosine, -1.0, 1.0))
+    angles[(lengths == 0).any(axis=1)] = 0.0
+    return angles.min(axis=1)

@@ -94,3 +94,10 @@ def test_fit_affine_recovers_a_map():
     np.testing.assert_allclose(fit_affine(source, apply_affine(affine, source)), affine, atol=1e-12)
     with pytest.raises(ValueError, match="one line"):
         fit_affine(np.array([[0, 0], [1, 1], [2, 2.0]]), np.zeros((3, 2)))
+
+
+def test_smallest_angles():
+    from solver.outline import smallest_angles
+    points = np.array([[0, 0], [1, 0], [0.5, np.sqrt(3) / 2], [2, 0], [1, 1e-3], [0, 0]])
+    angles = smallest_angles(points, [[0, 1, 2], [0, 3, 4], [0, 1, 5]])
+    np.testing.assert_allclose(angles, [np.pi / 3, np.arctan(1e-3), 0.0], atol=1e-9)

@@ -1,0 +1,91 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""App handlers that keep rigs live: handle moves, frame changes, file loads and undo."""
+
+import bpy
+from bpy.app.handlers import persistent
+
+from . import handles, rig
+
+# Writing geometry makes Blender evaluate again and call us back: ignore those calls.
+_busy = False
+
+
+def _report(message):
+    """Show why an update failed in the status bar (no window when headless)."""
+    context = bpy.context
+    workspace = getattr(context, "workspace", None)
+    if workspace is not None:
+        try:
+            workspace.status_text_set(message or None)
+        except (AttributeError, RuntimeError):
+            pass
+
+
+def _pose(objects, depsgraph):
+    global _busy
+    if not objects:
+        return
+    _busy = True
+    try:
+        for obj in objects:
+            if obj.mode == "EDIT":
+                continue  # Edit Mode owns the mesh; writing now would be overwritten
+            message = rig.pose_safely(obj, depsgraph)
+            if message:
+                _report(message)
+        depsgraph.update()  # so what is evaluated now shows the new pose, not the previous one
+    finally:
+        _busy = False
+
+
+@persistent
+def on_depsgraph_update(scene, depsgraph):
+    """A handle moved (or a rigged object's handles did): solve and write at once."""
+    if _busy:
+        return
+    moved = {}
+    for update in depsgraph.updates:
+        if not update.is_updated_transform or not isinstance(update.id, bpy.types.Object):
+            continue
+        owner = handles.rig_of(update.id.original)
+        if owner is not None:
+            moved[owner.name] = owner
+    _pose(list(moved.values()), depsgraph)
+
+
+@persistent
+def on_frame_change(scene, depsgraph):
+    """Frames changed: animated handles have new transforms."""
+    if _busy:
+        return
+    _pose([o for o in rig.bound_objects(scene) if o.shapedeform.handles], depsgraph)
+
+
+@persistent
+def on_load(*_args):
+    """A file was opened: rigs are rebuilt lazily from the data saved in it."""
+    rig.forget()
+
+
+_HANDLERS = (
+    ("depsgraph_update_post", on_depsgraph_update),
+    ("frame_change_post", on_frame_change),
+    ("load_post", on_load),
+    ("undo_post", on_load),
+    ("redo_post", on_load),
+)
+
+classes = ()
+
+
+def register():
+    for name, function in _HANDLERS:
+        getattr(bpy.app.handlers, name).append(function)
+
+
+def unregister():
+    for name, function in _HANDLERS:
+        functions = getattr(bpy.app.handlers, name)
+        if function in functions:
+            functions.remove(function)
+    rig.forget()

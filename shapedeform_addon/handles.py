@@ -1,0 +1,117 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Handles: ordinary Empty objects, one collection per rig, parented to the rigged object.
+
+A handle's Empty is parented to the shape's object (so moving the object carries its rig) and
+drawn as a circle in the shape's plane, as big as the region of the shape it owns.
+"""
+
+import bpy
+import numpy as np
+from mathutils import Matrix
+
+from ..solver.handles import frame_2d, handle_matrix, region_offsets, rest_position, select_region
+from . import rig as rigs
+from .sources import RigError
+
+
+def _collection(obj):
+    settings = obj.shapedeform
+    collection = settings.handle_collection
+    if collection is None:
+        collection = bpy.data.collections.new(f"{obj.name} Handles")
+        parents = obj.users_collection or (bpy.context.scene.collection,)
+        parents[0].children.link(collection)
+        settings.handle_collection = collection
+    return collection
+
+
+def add(obj, location, depsgraph=None):
+    """Add a handle at a world ``location`` (projected onto the shape's plane).
+
+    The handle owns the graph points near the place on the rest shape that is now under
+    ``location``; their offsets are taken from their current (posed) positions, so adding a
+    handle does not move the shape.
+
+    Returns
+    -------
+    bpy.types.Object
+        The new Empty.
+
+    Raises
+    ------
+    RigError
+        The object is not bound, or no graph point is left for the handle.
+    """
+    settings = obj.shapedeform
+    if not settings.is_bound:
+        raise RigError(f"'{obj.name}' is not bound: bind it first")
+    rig = rigs.get(obj)
+    world = np.array(obj.matrix_world, dtype=np.float64)
+    local = np.linalg.solve(world, np.append(np.asarray(location, dtype=np.float64), 1.0))[:3]
+    point = rig.plane.to_2d(local[None])[0]
+    if not np.all(np.isfinite(point)):
+        raise RigError("the handle's location is not a finite point")
+    graph = rig.graph
+    rest_centre = rest_position(graph.points, rig.posed, graph.triangles, point[None])[0]
+    taken = np.zeros(graph.n, dtype=bool)
+    taken[rig.indices] = True
+    try:
+        region = select_region(graph.points, rest_centre, settings.region_size * graph.size, taken)
+    except ValueError as err:
+        raise RigError(str(err)) from None
+    radius = settings.region_size * graph.size
+    matrix = handle_matrix(rig.plane, point)
+    offsets = region_offsets(frame_2d(rig.plane, matrix), rig.posed[region])
+
+    empty = bpy.data.objects.new(f"{obj.name} Handle", None)
+    empty.empty_display_type = "CIRCLE"
+    empty.empty_display_size = radius
+    _collection(obj).objects.link(empty)
+    empty.parent = obj
+    empty.matrix_parent_inverse.identity()
+    # A Matrix, not a list: a nested list would be read column by column.
+    empty.matrix_basis = Matrix(matrix.tolist())
+    empty.shapedeform.rig = obj
+    item = settings.handles.add()
+    item.object = empty
+    item["indices"] = region.astype(np.int32)
+    item["offsets"] = offsets.ravel()
+    settings.active_handle = len(settings.handles) - 1
+    rigs.forget(obj)
+    return empty
+
+
+def remove(obj, empties):
+    """Remove the handles whose Empties are in ``empties``; returns how many were removed."""
+    settings = obj.shapedeform
+    removed = 0
+    for i in reversed(range(len(settings.handles))):
+        empty = settings.handles[i].object
+        if empty is None or empty in empties:
+            settings.handles.remove(i)
+            if empty is not None:
+                bpy.data.objects.remove(empty)
+                removed += 1
+    settings.active_handle = min(settings.active_handle, max(len(settings.handles) - 1, 0))
+    rigs.forget(obj)
+    return removed
+
+
+def remove_all(obj):
+    """Remove every handle of ``obj`` and its handle collection."""
+    settings = obj.shapedeform
+    remove(obj, {item.object for item in settings.handles})
+    collection = settings.handle_collection
+    if collection is not None:
+        for leftover in list(collection.objects):
+            if leftover.shapedeform.rig == obj:
+                bpy.data.objects.remove(leftover)
+        settings.handle_collection = None
+        if len(collection.objects) == 0 and len(collection.children) == 0:
+            bpy.data.collections.remove(collection)
+
+
+def rig_of(empty):
+    """The bound object a handle Empty drives, or None."""
+    owner = empty.shapedeform.rig
+    return owner if owner is not None and owner.shapedeform.is_bound else None

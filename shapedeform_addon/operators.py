@@ -1,0 +1,139 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Operators: bind, unbind, add and remove handles.
+
+Every operator refuses bad input with a message in the status bar and changes nothing.
+"""
+
+import bpy
+import numpy as np
+from bpy.props import FloatVectorProperty
+
+from . import handles, rig, sources
+from .sources import RigError
+
+
+def _target(context):
+    """The rigged object the user means: the active object, or the rig of an active handle."""
+    obj = context.active_object
+    if obj is not None and obj.shapedeform.rig is not None:
+        return obj.shapedeform.rig
+    return obj
+
+
+class SHAPEDEFORM_OT_bind(bpy.types.Operator):
+    """Rig the active object: find its plane, build its graph and keep its rest shape"""
+
+    bl_idname = "shapedeform.bind"
+    bl_label = "Bind"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        obj = context.active_object
+        if obj is not None and obj.mode != "OBJECT":
+            bpy.ops.object.mode_set(mode="OBJECT")
+        try:
+            bound = rig.bind(obj)
+        except RigError as err:
+            self.report({"ERROR"}, str(err))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Bound '{obj.name}': {bound.graph.n} graph points")
+        return {"FINISHED"}
+
+
+class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
+    """Give back the rest shape exactly and remove the rig and its handles"""
+
+    bl_idname = "shapedeform.unbind"
+    bl_label = "Unbind"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        obj = _target(context)
+        if obj is None or not obj.shapedeform.is_bound:
+            self.report({"ERROR"}, "The active object is not bound")
+            return {"CANCELLED"}
+        if obj.mode != "OBJECT":
+            bpy.ops.object.mode_set(mode="OBJECT")
+        rig.unbind(obj)
+        return {"FINISHED"}
+
+
+class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
+    """Add a handle at a location, or one at each selected point"""
+
+    bl_idname = "shapedeform.add_handle"
+    bl_label = "Add Handle"
+    bl_options = {"REGISTER", "UNDO"}
+
+    location: FloatVectorProperty(name="Location", subtype="TRANSLATION", size=3,
+                                  description="World location of the handle (projected onto the shape's plane)")
+
+    def execute(self, context):
+        obj = _target(context)
+        if obj is None or not obj.shapedeform.is_bound:
+            self.report({"ERROR"}, "Bind the object before adding handles")
+            return {"CANCELLED"}
+        was_edit = obj.mode == "EDIT"
+        if was_edit:
+            # Leaving Edit Mode writes the selection into the data, where the rest data is too.
+            bpy.ops.object.mode_set(mode="OBJECT")
+        if self.properties.is_property_set("location"):
+            locations = np.array([self.location], dtype=np.float64)
+        else:
+            local = sources.module_for(obj).selected(obj)
+            if len(local) == 0:
+                if was_edit:
+                    bpy.ops.object.mode_set(mode="EDIT")
+                self.report({"ERROR"}, "Select points of the shape, or give a location")
+                return {"CANCELLED"}
+            world = np.array(obj.matrix_world, dtype=np.float64)
+            locations = local @ world[:3, :3].T + world[:3, 3]
+        added = []
+        try:
+            for location in locations:
+                added.append(handles.add(obj, location))
+        except RigError as err:
+            handles.remove(obj, set(added))  # all or nothing
+            if was_edit:
+                bpy.ops.object.mode_set(mode="EDIT")
+            self.report({"ERROR"}, str(err))
+            return {"CANCELLED"}
+        rig.pose_safely(obj, context.evaluated_depsgraph_get())
+        if was_edit:
+            bpy.ops.object.mode_set(mode="EDIT")
+        else:
+            for other in context.selected_objects:
+                other.select_set(False)
+            for empty in added:
+                empty.select_set(True)
+            context.view_layer.objects.active = added[-1]
+        return {"FINISHED"}
+
+
+class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
+    """Remove the selected handles"""
+
+    bl_idname = "shapedeform.remove_handle"
+    bl_label = "Remove Handle"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        selected = [o for o in context.selected_objects if handles.rig_of(o) is not None]
+        if not selected:
+            self.report({"ERROR"}, "Select the handles to remove")
+            return {"CANCELLED"}
+        owners = {handles.rig_of(o) for o in selected}
+        for owner in owners:
+            handles.remove(owner, set(selected))
+            rig.pose_safely(owner, context.evaluated_depsgraph_get())
+        return {"FINISHED"}
+
+
+classes = (
+    SHAPEDEFORM_OT_bind,
+    SHAPEDEFORM_OT_unbind,
+    SHAPEDEFORM_OT_add_handle,
+    SHAPEDEFORM_OT_remove_handle,
+)
+
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,0 +1,82 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Settings and rig state stored on objects (``Object.shapedeform``), saved in the .blend.
+
+Besides the properties declared here, a bound object keeps its rig's rest data as ID
+properties of ``obj.shapedeform`` (written by :mod:`.rig`): the plane, the graph, and on each
+handle item the graph points it owns and their offsets in its frame.
+"""
+
+import bpy
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
+                       PointerProperty, StringProperty)
+
+
+def _settings_changed(self, context):
+    """Weights, area or iterations changed: rebuild the deformer and pose again."""
+    from . import rig  # late: rig imports this module
+    owner = self.id_data
+    if isinstance(owner, bpy.types.Object) and self.is_bound:
+        rig.forget(owner)
+        rig.pose_safely(owner, context.evaluated_depsgraph_get())
+
+
+class SHAPEDEFORM_PG_handle(bpy.types.PropertyGroup):
+    """One handle of a rig: the Empty the animator moves."""
+
+    object: PointerProperty(type=bpy.types.Object, name="Handle", description="The Empty that drives this handle")
+
+
+class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
+    """Shape Deform settings and state of one object."""
+
+    is_bound: BoolProperty(name="Bound", description="The object is rigged", default=False)
+    kind: StringProperty(name="Kind", description="What was rigged: MESH, IMAGE, CURVE or GREASEPENCIL")
+    handles: CollectionProperty(type=SHAPEDEFORM_PG_handle, name="Handles")
+    active_handle: IntProperty(name="Active Handle", default=0, min=0)
+    handle_collection: PointerProperty(type=bpy.types.Collection, name="Handle Collection")
+    original_data: PointerProperty(type=bpy.types.Mesh, name="Original Mesh",
+                                   description="An image plane's quad, given back on unbind")
+    rig: PointerProperty(type=bpy.types.Object, name="Rig",
+                         description="On a handle: the object it deforms")
+    preserve_area: BoolProperty(name="Preserve Area", description="Keep the shape's total area",
+                                default=False, update=_settings_changed)
+    weight_laplacian: FloatProperty(name="Boundary Detail", description="Weight of the curve Laplacian term",
+                                    default=1.0, min=0.0, soft_max=10.0, update=_settings_changed)
+    weight_mvc: FloatProperty(name="Interior Shape", description="Weight of the mean value coordinates term",
+                              default=1.0, min=0.0, soft_max=10.0, update=_settings_changed)
+    weight_edge: FloatProperty(name="Edge Length", description="Weight of the edge length term",
+                               default=1.0, min=0.0, soft_max=10.0, update=_settings_changed)
+    iterations: IntProperty(name="Iterations", description="Most solver iterations per update",
+                            default=15, min=1, max=200, update=_settings_changed)
+    graph_mode: EnumProperty(
+        name="Graph", description="What the solver deforms",
+        items=[("AUTO", "Automatic", "The mesh itself when it is small, an outline graph when it is dense"),
+               ("OWN", "Mesh", "The mesh is its own graph: its boundary loops, vertices and edges"),
+               ("OUTLINE", "Outline", "A graph built from the outline; every vertex is bound to it")],
+        default="AUTO")
+    density: IntProperty(name="Graph Density", description="About how many interior points the built graph has",
+                         default=300, min=20, max=5000)
+    region_size: FloatProperty(name="Handle Region", description="Radius of a handle's region, as a fraction of the shape's size",
+                               default=0.04, min=0.001, max=0.5, subtype='FACTOR')
+    layers: StringProperty(name="Layers", description="Grease pencil layers to rig, comma separated (empty: all)")
+    show_overlay: BoolProperty(name="Show Graph", description="Draw the graph and handle regions in the viewport",
+                               default=False)
+    status: StringProperty(name="Status", description="Why the last update failed (empty when it worked)")
+
+
+classes = (
+    SHAPEDEFORM_PG_handle,
+    SHAPEDEFORM_PG_object,
+)
+
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register_classes()
+    bpy.types.Object.shapedeform = PointerProperty(type=SHAPEDEFORM_PG_object)
+
+
+def unregister():
+    del bpy.types.Object.shapedeform
+    _unregister_classes()

@@ -1,0 +1,224 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Rigs: binding and unbinding objects, and the runtime cache that poses them.
+
+What lives in the .blend (so a saved file keeps working with no step by hand):
+
+- the source's rest points (``sd_rest`` attributes, or ID properties on curves),
+- on ``obj.shapedeform`` as ID properties: ``plane`` (12 numbers) and the graph
+  (``graph_points``, ``graph_edges``, ``graph_loops`` with ``graph_loop_sizes``,
+  ``graph_triangles``, ``own_graph``), stored rather than rebuilt so that a file opens with
+  exactly the graph it was rigged with,
+- on each handle item: ``indices`` (graph points it owns) and ``offsets`` (those points in the
+  handle's frame when it was added).
+
+What lives only in memory (:class:`Rig`, keyed by ``Object.session_uid``): the solver's graph,
+deformer and binding, rebuilt lazily from the above after load, undo, or a settings change.
+"""
+
+import numpy as np
+
+from .. import solver
+from ..solver.handles import frame_2d, region_targets
+from . import sources
+from .sources import RigError
+
+_cache = {}
+
+
+class Rig:
+    """Solver objects of one bound object, rebuilt from its stored rest data."""
+
+    def __init__(self, obj):
+        settings = obj.shapedeform
+        self.source = sources.module_for(obj)
+        rest = self.source.read_rest(obj)
+        try:
+            self.plane = solver.Plane.from_array(settings["plane"])
+            n = len(settings["graph_points"]) // 2
+            points = np.asarray(settings["graph_points"], dtype=np.float64).reshape(n, 2)
+            loops = np.split(np.asarray(settings["graph_loops"], dtype=np.int64),
+                             np.cumsum(np.asarray(settings["graph_loop_sizes"]))[:-1])
+            self.graph = solver.Graph(points, np.asarray(settings["graph_edges"]).reshape(-1, 2),
+                                      loops, np.asarray(settings["graph_triangles"]).reshape(-1, 3))
+            self.own_graph = bool(settings["own_graph"])
+        except (KeyError, ValueError) as err:
+            raise RigError(f"'{obj.name}' has damaged rig data ({err}); unbind and bind it again") from None
+        self.rest_flat = self.plane.to_2d(rest)
+        self.heights = self.plane.heights(rest)
+        if self.own_graph and len(rest) != self.graph.n:
+            raise RigError(f"'{obj.name}' changed its point count since it was bound; unbind and bind it again")
+        self.binding = None if self.own_graph else solver.bind(self.graph, self.rest_flat)
+        self.handle_objects = []
+        indices, offsets, owners = [], [], []
+        for item in settings.handles:
+            if item.object is None or "indices" not in item:
+                continue  # the animator deleted the Empty: that handle is gone
+            owned = np.asarray(item["indices"], dtype=np.int64)
+            indices.append(owned)
+            offsets.append(np.asarray(item["offsets"], dtype=np.float64).reshape(-1, 2))
+            owners.append(np.full(len(owned), len(self.handle_objects)))
+            self.handle_objects.append(item.object)
+        self.indices = np.concatenate(indices) if indices else np.empty(0, np.int64)
+        self.offsets = np.concatenate(offsets) if offsets else np.empty((0, 2))
+        self.owners = np.concatenate(owners) if owners else np.empty(0, np.int64)
+        weights = {"laplacian": settings.weight_laplacian, "mvc": settings.weight_mvc, "edge": settings.weight_edge}
+        try:
+            self.deformer = solver.Deformer(self.graph, self.indices, weights, settings.preserve_area) \
+                if len(self.indices) else None
+        except ValueError as err:
+            raise RigError(f"'{obj.name}': {err}") from None
+        self.signature = signature(obj)
+        # Graph positions of the last pose written (rest until posed).
+        self.posed = self.graph.points.copy()
+
+    def frames(self, obj, depsgraph=None):
+        """Each handle's 2D frame in the shape's plane, (h, 3, 3), from evaluated transforms."""
+        def world(o):
+            o = o.evaluated_get(depsgraph) if depsgraph is not None else o
+            return np.array(o.matrix_world, dtype=np.float64)
+
+        to_local = np.linalg.inv(world(obj))
+        return np.array([frame_2d(self.plane, to_local @ world(h)) for h in self.handle_objects]).reshape(-1, 3, 3)
+
+    def solve(self, frames, iterations):
+        """Graph positions (n, 2) for handle frames (h, 3, 3)."""
+        if self.deformer is None:
+            return self.graph.points.copy()
+        targets = region_targets(frames, self.offsets, self.owners)
+        return self.deformer.solve(targets, max_iterations=iterations).positions
+
+    def points(self, positions):
+        """The source's points, (p, 3) float32, for graph ``positions`` (n, 2)."""
+        flat = positions if self.binding is None else self.binding.apply(positions)
+        return self.plane.to_3d(flat, self.heights).astype(np.float32)
+
+
+def signature(obj):
+    """What the deformer depends on besides stored data: handles and settings."""
+    s = obj.shapedeform
+    return (tuple(item.object.name if item.object else None for item in s.handles),
+            s.weight_laplacian, s.weight_mvc, s.weight_edge, s.preserve_area)
+
+
+def get(obj):
+    """The object's :class:`Rig`, built if missing or stale; RigError if it cannot be."""
+    obj = obj.original
+    rig = _cache.get(obj.session_uid)
+    if rig is None or rig.signature != signature(obj):
+        rig = Rig(obj)
+        _cache[obj.session_uid] = rig
+    return rig
+
+
+def forget(obj=None):
+    """Drop the cached rig of ``obj`` (of every object when None): rebuilt on next use."""
+    if obj is None:
+        _cache.clear()
+    else:
+        _cache.pop(obj.original.session_uid, None)
+
+
+def pose(obj, depsgraph=None):
+    """Solve for the handles' current transforms and write the result into ``obj``.
+
+    Raises
+    ------
+    RigError
+        The rig cannot be built or the solve failed; nothing was written.
+    """
+    rig = get(obj)
+    frames = rig.frames(obj, depsgraph)
+    try:
+        positions = rig.solve(frames, obj.shapedeform.iterations)
+        points = rig.points(positions)
+    except (ValueError, np.linalg.LinAlgError, FloatingPointError) as err:
+        raise RigError(f"'{obj.name}': {err}") from None
+    if not np.all(np.isfinite(points)):
+        raise RigError(f"'{obj.name}': the solve gave non-finite positions; kept the last pose")
+    rig.source.write(obj, np.ascontiguousarray(points))
+    rig.posed = positions
+    return rig
+
+
+def pose_safely(obj, depsgraph=None):
+    """:func:`pose`, keeping the last good pose and recording why when it fails.
+
+    Returns
+    -------
+    str
+        Empty when it worked, else the reason (also in ``obj.shapedeform.status``).
+    """
+    try:
+        pose(obj, depsgraph)
+        message = ""
+    except RigError as err:
+        message = str(err)
+    if obj.shapedeform.status != message:
+        obj.shapedeform.status = message
+    return message
+
+
+# -- binding ----------------------------------------------------------------------------------
+
+def _store_graph(settings, plane, graph, own_graph):
+    settings["plane"] = plane.to_array()
+    settings["graph_points"] = graph.points.ravel()
+    settings["graph_edges"] = graph.edges.astype(np.int32).ravel()
+    settings["graph_loops"] = np.concatenate(graph.boundary_loops).astype(np.int32)
+    settings["graph_loop_sizes"] = np.array([len(loop) for loop in graph.boundary_loops], dtype=np.int32)
+    settings["graph_triangles"] = graph.triangles.astype(np.int32).ravel()
+    settings["own_graph"] = bool(own_graph)
+
+
+_STORED_KEYS = ("plane", "graph_points", "graph_edges", "graph_loops", "graph_loop_sizes",
+                "graph_triangles", "own_graph")
+
+
+def bind(obj):
+    """Rig ``obj``: everything is computed first, so a refusal changes nothing.
+
+    Raises
+    ------
+    RigError
+        The object cannot be rigged; the message says why.
+    """
+    if obj is None:
+        raise RigError("No active object to rig")
+    settings = obj.shapedeform
+    if settings.is_bound:
+        raise RigError(f"'{obj.name}' is already bound")
+    if settings.rig is not None:
+        raise RigError(f"'{obj.name}' is a handle of '{settings.rig.name}'")
+    kind = sources.kind_of(obj)
+    module = sources.module_for(obj)
+    prepared = module.prepare(obj, settings)
+    prepared.commit(obj)
+    _store_graph(settings, prepared.plane, prepared.graph, prepared.own_graph)
+    settings.kind = kind
+    settings.is_bound = True
+    settings.status = ""
+    forget(obj)
+    return get(obj)
+
+
+def unbind(obj):
+    """Give back the rest shape exactly and remove everything the rig added (handles too)."""
+    from . import handles
+
+    settings = obj.shapedeform
+    if not settings.is_bound:
+        raise RigError(f"'{obj.name}' is not bound")
+    handles.remove_all(obj)
+    sources.module_for(obj).restore(obj)
+    for key in _STORED_KEYS:
+        if key in settings:
+            del settings[key]
+    settings.is_bound = False
+    settings.kind = ""
+    settings.status = ""
+    forget(obj)
+
+
+def bound_objects(scene):
+    """Bound objects of ``scene``."""
+    return [o for o in scene.objects if o.shapedeform.is_bound]

@@ -1,0 +1,115 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Planar meshes: vertex positions in, vertex positions out.
+
+The rest positions are kept in the point attribute ``sd_rest`` (float32, an exact copy), so
+unbinding gives back the mesh bit for bit and the rig survives save and reload.
+"""
+
+import numpy as np
+
+from ... import solver
+from ...solver.outline import boundary_loops, smallest_angles, spacing_for_count
+from . import Prepared, RigError
+
+REST_ATTRIBUTE = "sd_rest"
+# The automatic graph mode deforms the mesh itself up to this many vertices; denser meshes are
+# bound to a graph of a few hundred points built from their outline (a solve stays fast).
+OWN_GRAPH_LIMIT = 2000
+# ... and only when its triangles are not slivers (text and n-gon fills are): the paper's energy
+# on slivers lets them flip, while a built graph has well-shaped triangles.
+OWN_GRAPH_MIN_ANGLE = np.radians(5.0)
+
+
+def read_vectors(attribute, count):
+    """A float vector attribute as a (count, 3) float32 array."""
+    flat = np.empty(count * 3, dtype=np.float32)
+    attribute.data.foreach_get("vector", flat)
+    return flat.reshape(count, 3)
+
+
+def positions(mesh):
+    return read_vectors(mesh.attributes["position"], len(mesh.vertices))
+
+
+def triangles(mesh):
+    mesh.calc_loop_triangles()
+    flat = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", flat)
+    return flat.reshape(-1, 3).astype(np.int64)
+
+
+def edges(mesh):
+    flat = np.empty(len(mesh.edges) * 2, dtype=np.int32)
+    mesh.edges.foreach_get("vertices", flat)
+    return flat.reshape(-1, 2).astype(np.int64)
+
+
+def prepare(obj, settings):
+    mesh = obj.data
+    if len(mesh.vertices) == 0:
+        raise RigError(f"'{obj.name}' has no vertices")
+    rest = positions(mesh)
+    try:
+        plane = solver.fit_plane(rest)
+    except ValueError as err:
+        raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
+    flat = plane.to_2d(rest)
+    tris = triangles(mesh)
+    try:
+        loops = boundary_loops(tris)
+    except ValueError as err:
+        raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
+    on_faces = np.zeros(len(rest), dtype=bool)
+    on_faces[tris.ravel()] = True
+    mode = settings.graph_mode
+    if mode == "AUTO":
+        well_shaped = smallest_angles(flat, tris).min() >= OWN_GRAPH_MIN_ANGLE
+        mode = "OWN" if len(rest) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped else "OUTLINE"
+    try:
+        if mode == "OWN":
+            if not on_faces.all():
+                raise ValueError(f"{int((~on_faces).sum())} vertices are on no face; use the Outline graph")
+            graph = solver.Graph(flat, edges(mesh), loops, tris)
+        else:
+            rings = [flat[loop] for loop in loops]
+            graph = solver.build_graph(rings, spacing_for_count(rings, settings.density))
+    except ValueError as err:
+        raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
+    return Prepared(rest, plane, graph, mode == "OWN", commit=lambda o: store_rest(o.data, rest))
+
+
+def store_rest(mesh, rest):
+    attribute = mesh.attributes.get(REST_ATTRIBUTE) or mesh.attributes.new(REST_ATTRIBUTE, "FLOAT_VECTOR", "POINT")
+    attribute.data.foreach_set("vector", np.ascontiguousarray(rest, dtype=np.float32).ravel())
+
+
+def read_rest(obj):
+    mesh = obj.data
+    attribute = mesh.attributes.get(REST_ATTRIBUTE)
+    if attribute is None or attribute.domain != "POINT" or attribute.data_type != "FLOAT_VECTOR":
+        raise RigError(f"'{obj.name}' lost its rest shape (attribute {REST_ATTRIBUTE}); bind it again")
+    return read_vectors(attribute, len(mesh.vertices)).astype(np.float64)
+
+
+def write(obj, points):
+    mesh = obj.data
+    mesh.attributes["position"].data.foreach_set("vector", points.ravel())
+    mesh.update()
+
+
+def restore(obj):
+    mesh = obj.data
+    attribute = mesh.attributes.get(REST_ATTRIBUTE)
+    if attribute is None:
+        return
+    rest = read_vectors(attribute, len(mesh.vertices))
+    mesh.attributes.remove(attribute)
+    write(obj, rest)
+
+
+def selected(obj):
+    """Current local positions (k, 3) of the selected vertices (call in Object Mode)."""
+    mesh = obj.data
+    mask = np.zeros(len(mesh.vertices), dtype=bool)
+    mesh.vertices.foreach_get("select", mask)
+    return positions(mesh)[mask].astype(np.float64)

@@ -1,0 +1,101 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Checks shared by the rig tests: read back what Blender evaluated and judge a pose."""
+
+import bpy
+import numpy as np
+
+
+def smallest_angles(points, tris):
+    a, b, c = (points[tris[:, k]] for k in range(3))
+    def angle(p, q, r):
+        u, v = q - p, r - p
+        cos = np.einsum('ij,ij->i', u, v) / np.maximum(np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1), 1e-300)
+        return np.arccos(np.clip(cos, -1, 1))
+    return np.minimum.reduce([angle(a, b, c), angle(b, c, a), angle(c, a, b)])
+
+
+def world(obj, local):
+    m = np.array(obj.matrix_world)
+    return tuple(m[:3, :3] @ np.asarray(local, float) + m[:3, 3])
+
+
+def add_handle(obj, location):
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.add_handle(location=location) == {"FINISHED"}
+    handle = obj.shapedeform.handles[-1].object
+    bpy.context.view_layer.update()
+    return handle
+
+
+def mesh_points(obj, mesh=None):
+    mesh = obj.data if mesh is None else mesh
+    flat = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.attributes["position"].data.foreach_get("vector", flat)
+    return flat.reshape(-1, 3)
+
+
+def evaluated_mesh_points(obj):
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    return mesh_points(obj, obj.evaluated_get(depsgraph).data)
+
+
+def triangles(obj):
+    mesh = obj.data
+    mesh.calc_loop_triangles()
+    flat = np.empty(len(mesh.loop_triangles) * 3, np.int32)
+    mesh.loop_triangles.foreach_get("vertices", flat)
+    return flat.reshape(-1, 3)
+
+
+def signed_areas(points2, tris):
+    a, b, c = (points2[tris[:, k]] for k in range(3))
+    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+
+def plane_axes(normal):
+    normal = np.asarray(normal, float) / np.linalg.norm(normal)
+    u = np.cross(normal, [0.3, 0.5, 0.8])
+    u /= np.linalg.norm(u)
+    return np.stack([u, np.cross(normal, u)])
+
+
+def area(obj, points, normal=(0, 0, 1.0)):
+    flat = points @ plane_axes(normal).T
+    return float(np.abs(signed_areas(flat, triangles(obj)).sum()))
+
+
+def assert_posed(obj, rest, posed, normal, reached=(), exact=True):
+    """Handles reached, the shape followed, no triangle flipped, every point in the plane."""
+    assert np.all(np.isfinite(posed))
+    size = float(np.linalg.norm(np.ptp(rest, axis=0)))
+    assert np.abs(posed - rest).max() > 1e-3 * size, "the shape did not move"
+    normal = np.asarray(normal, float) / np.linalg.norm(normal)
+    height = (posed - rest) @ normal
+    assert np.abs(height).max() < 1e-5 * size, "points left the plane"
+    tris = triangles(obj)
+    flat_rest, flat_posed = (p @ plane_axes(normal).T for p in (rest, posed))
+    before, after = signed_areas(flat_rest, tris), signed_areas(flat_posed, tris)
+    # Slivers (a smallest angle under a degree, as in text fills) flip invisibly; judge the rest.
+    keep = smallest_angles(flat_rest, tris) > np.radians(1.0)
+    assert np.all(np.sign(before[keep]) == np.sign(after[keep])), f"{int((np.sign(before[keep]) != np.sign(after[keep])).sum())} triangles flipped"
+    to_local = np.linalg.inv(np.array(obj.matrix_world))
+    for location, handle in reached:
+        start = to_local[:3, :3] @ np.asarray(location) + to_local[:3, 3]
+        vertex = np.argmin(np.linalg.norm(rest - start, axis=1))
+        goal = to_local @ np.append(np.array(handle.matrix_world.translation), 1.0)
+        tolerance = 1e-5 * size if exact else 0.02 * size
+        assert np.linalg.norm(posed[vertex] - goal[:3]) < tolerance, "the handle's vertex did not follow it"
+
+
+def snapshot():
+    """Names of all data-blocks, with the mesh positions: to check nothing changed."""
+    state = {}
+    for attribute in ("objects", "meshes", "curves", "collections", "grease_pencils"):
+        collection = getattr(bpy.data, attribute, None)
+        if collection is not None:
+            state[attribute] = sorted(item.name for item in collection)
+    for mesh in bpy.data.meshes:
+        coordinates = np.empty(len(mesh.vertices) * 3, np.float32)
+        mesh.vertices.foreach_get("co", coordinates)
+        state[f"mesh {mesh.name}"] = (coordinates.tobytes(), sorted(a.name for a in mesh.attributes))
+    return state

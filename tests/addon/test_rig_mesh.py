@@ -1,0 +1,187 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Rigging planar meshes: bind, handles, live posing, save and reopen, unbind exactly."""
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Matrix, Vector
+
+import rig_checks as checks
+
+
+def grid(name="Grid", x=12, y=6, turn=None):
+    """A 2 x 1 grid of quads, turned to an arbitrary plane when ``turn`` is given."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=x, y_subdivisions=y, size=1.0)
+    obj = bpy.context.active_object
+    obj.name = name
+    obj.data.transform(Matrix.Diagonal((2.0, 1.0, 1.0, 1.0)))
+    if turn is not None:
+        obj.data.transform(turn)
+    obj.location = (0.5, -1.0, 0.25)
+    bpy.context.view_layer.update()
+    return obj
+
+
+TILTED = Matrix.Rotation(0.7, 4, Vector((1.0, 2.0, 0.5)).normalized())
+
+
+@pytest.mark.parametrize("mode", ["OWN", "OUTLINE"])
+def test_mesh_follows_handles_in_any_plane(addon, mode):
+    obj = grid(turn=TILTED)
+    rest = checks.mesh_points(obj)
+    obj.shapedeform.graph_mode = mode
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert obj.shapedeform.is_bound
+    left, right = checks.world(obj, rest[np.argmin(rest @ TILTED.to_3x3().col[0])]), \
+        checks.world(obj, rest[np.argmax(rest @ TILTED.to_3x3().col[0])])
+    a = checks.add_handle(obj, left)
+    b = checks.add_handle(obj, right)
+    # Adding handles never moves the shape.
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), rest, atol=1e-5)
+    assert [item.object for item in obj.shapedeform.handles] == [a, b]
+    assert a.users_collection[0] == obj.shapedeform.handle_collection
+
+    plane_normal = TILTED.to_3x3() @ Vector((0, 0, 1))
+    in_plane = TILTED.to_3x3() @ Vector((0, 1, 0))
+    b.matrix_world.translation = Vector(right) + 0.6 * in_plane
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_mesh_points(obj)
+    checks.assert_posed(obj, rest, posed, reached=[(right, b)], exact=mode == "OWN",
+                        normal=np.array(plane_normal))
+    assert obj.shapedeform.status == ""
+
+
+def test_rotating_a_handle_turns_its_region_and_area_is_kept(addon):
+    obj = grid(x=16, y=8)
+    rest = checks.mesh_points(obj)
+    obj.shapedeform.preserve_area = True
+    bpy.ops.shapedeform.bind()
+    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    b = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    before = checks.evaluated_mesh_points(obj)
+    b.rotation_euler.z += 0.6
+    b.location.y += 0.5
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_mesh_points(obj)
+    checks.assert_posed(obj, rest, posed, normal=np.array([0, 0, 1.0]))
+    # The region b owns (the mesh is its own graph: graph points are vertices) turned with it.
+    i, j = np.asarray(obj.shapedeform.handles[1]["indices"])[:2]
+    turned = np.arctan2(*(posed[j, :2] - posed[i, :2])[::-1]) - np.arctan2(*(before[j, :2] - before[i, :2])[::-1])
+    assert turned == pytest.approx(0.6, abs=1e-4)
+    assert checks.area(obj, posed) == pytest.approx(checks.area(obj, rest), rel=1e-3)
+
+
+def test_save_reopen_keeps_the_rig_working_and_unbind_is_exact(addon, tmp_path):
+    obj = grid()
+    rest = checks.mesh_points(obj).copy()
+    bpy.ops.shapedeform.bind()
+    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    handle.location.y += 0.3
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_mesh_points(obj).copy()
+    path = str(tmp_path / "rig.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    bpy.ops.wm.open_mainfile(filepath=path)  # runs load_post
+    obj = bpy.data.objects["Grid"]
+    np.testing.assert_array_equal(checks.mesh_points(obj), posed)
+    handle = obj.shapedeform.handles[1].object
+    handle.location.y += 0.2
+    bpy.context.view_layer.update()
+    moved = checks.evaluated_mesh_points(obj)
+    assert np.abs(moved - posed).max() > 0.1
+    checks.assert_posed(obj, rest, moved, normal=np.array([0, 0, 1.0]))
+
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert checks.mesh_points(obj).tobytes() == rest.tobytes()
+    assert "sd_rest" not in obj.data.attributes
+    assert not obj.shapedeform.is_bound and len(obj.shapedeform.handles) == 0
+    assert [o.name for o in bpy.data.objects] == ["Grid"]
+    assert not any("Handles" in c.name for c in bpy.data.collections)
+    assert "graph_points" not in obj.shapedeform
+
+
+def test_frame_change_poses_animated_handles(addon):
+    obj = grid()
+    bpy.ops.shapedeform.bind()
+    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    scene = bpy.context.scene
+    start = handle.location.copy()
+    handle.keyframe_insert("location", frame=1)
+    handle.location.y += 0.4
+    handle.keyframe_insert("location", frame=10)
+    tip = np.argmin(np.linalg.norm(checks.mesh_points(obj)[:, :2] - [1.0, 0.0], axis=1))
+    scene.frame_set(10)
+    at_ten = checks.evaluated_mesh_points(obj)
+    assert at_ten[tip, 1] == pytest.approx(0.4, abs=1e-5)  # not a frame late
+    scene.frame_set(5)
+    assert checks.evaluated_mesh_points(obj)[tip, 1] == pytest.approx(handle.location.y - start.y, abs=1e-5)
+    scene.frame_set(1)
+    assert checks.evaluated_mesh_points(obj)[tip, 1] == pytest.approx(0.0, abs=1e-5)
+
+
+def test_remove_handle_and_text_mesh_with_holes(addon):
+    bpy.ops.object.text_add()
+    bpy.context.object.data.body = "Bo"
+    bpy.ops.object.convert(target="MESH")
+    obj = bpy.context.active_object
+    rest = checks.mesh_points(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    lo, hi = rest.min(axis=0), rest.max(axis=0)
+    # "B" is the left letter; handles on its left and right edges.
+    left = rest[np.argmin(rest[:, 0])]
+    a = checks.add_handle(obj, checks.world(obj, left))
+    b_points = rest[rest[:, 0] < lo[0] + 0.45 * (hi[0] - lo[0])]
+    b = checks.add_handle(obj, checks.world(obj, b_points[np.argmax(b_points[:, 0])]))
+    b.location.y += 0.2
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_mesh_points(obj)
+    checks.assert_posed(obj, rest, posed, normal=np.array([0, 0, 1.0]))
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    b.select_set(True)
+    assert bpy.ops.shapedeform.remove_handle() == {"FINISHED"}
+    assert [i.object for i in obj.shapedeform.handles] == [a]
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), rest, atol=1e-5)
+
+
+def test_add_handles_at_selected_vertices(addon):
+    obj = grid()
+    bpy.ops.shapedeform.bind()
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="DESELECT")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    for i in (0, 5):
+        obj.data.vertices[i].select = True
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    handles = [i.object for i in obj.shapedeform.handles]
+    assert len(handles) == 2
+    expected = [checks.world(obj, obj.data.vertices[i].co) for i in (0, 5)]
+    np.testing.assert_allclose([h.matrix_world.translation for h in handles], expected, atol=1e-6)
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: bpy.data.meshes.new("Empty"), "no vertices"),
+    ("cube", "not planar"),
+    ("camera", "camera object"),
+])
+def test_bad_input_is_refused_and_changes_nothing(addon, make, message):
+    if make == "cube":
+        bpy.ops.mesh.primitive_cube_add()
+    elif make == "camera":
+        bpy.ops.object.camera_add()
+    else:
+        obj = bpy.data.objects.new("Empty mesh", make())
+        bpy.context.scene.collection.objects.link(obj)
+        bpy.context.view_layer.objects.active = obj
+    obj = bpy.context.active_object
+    before = checks.snapshot()
+    with pytest.raises(RuntimeError, match=message):
+        bpy.ops.shapedeform.bind()
+    assert not obj.shapedeform.is_bound
+    assert checks.snapshot() == before
