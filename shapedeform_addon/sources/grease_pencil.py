@@ -1,6 +1,147 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-from . import RigError
+"""Grease pencil (GPv3): the current frame's drawings of all layers, or the chosen ones.
+
+The graph is built inside the silhouette of the strokes (each swept by its radius, closed
+strokes filled); every stroke point is bound to it. The rest positions are kept in each
+drawing's ``sd_rest`` point attribute; the rigged drawings (layer name and frame number) are
+remembered on ``obj.shapedeform``.
+"""
+
+import numpy as np
+
+from ... import solver
+from ...solver.outline import spacing_for_count
+from ...solver.silhouette import stroke_silhouette
+from . import Prepared, RigError
+from .mesh import REST_ATTRIBUTE, read_vectors
+
+# Strokes thinner than this fraction of the drawing's size are swept this wide, so a hairline
+# drawing still has an area to deform.
+MIN_RADIUS_FRACTION = 0.005
+
+
+def _chosen_layers(obj, settings):
+    names = [n.strip() for n in settings.layers.split(",") if n.strip()]
+    layers = obj.data.layers
+    missing = [n for n in names if n not in layers]
+    if missing:
+        raise RigError(f"'{obj.name}' has no layer {', '.join(repr(n) for n in missing)}")
+    return [layers[n] for n in names] if names else list(layers)
+
+
+def _bound_drawings(obj):
+    settings = obj.shapedeform
+    names = settings["gp_layers"].split("\n")
+    numbers = list(settings["gp_frames"])
+    drawings = []
+    for name, number in zip(names, numbers):
+        layer = obj.data.layers.get(name)
+        frame = next((f for f in layer.frames if f.frame_number == number), None) if layer else None
+        if frame is None:
+            raise RigError(f"'{obj.name}' lost the drawing of layer '{name}' at frame {number}; unbind it")
+        drawings.append(frame.drawing)
+    return drawings
+
+
+def _points(drawing):
+    attribute = drawing.attributes.get("position")
+    count = len(attribute.data) if attribute is not None else 0
+    return read_vectors(attribute, count) if count else np.empty((0, 3), np.float32)
+
+
+def _values(drawing, name, count, dtype, default):
+    attribute = drawing.attributes.get(name)
+    values = np.full(count, default, dtype=dtype)
+    if attribute is not None and len(attribute.data) == count:
+        attribute.data.foreach_get("value", values)
+    return values
 
 
 def prepare(obj, settings):
-    raise RigError("not yet")
+    frames = [(layer, layer.current_frame()) for layer in _chosen_layers(obj, settings)]
+    frames = [(layer, frame) for layer, frame in frames if frame is not None and frame.drawing is not None]
+    if not frames:
+        raise RigError(f"'{obj.name}' has no drawing on the current frame")
+    rests, offsets, radii, cyclic, start = [], [np.zeros(1, np.int64)], [], [], 0
+    for _, frame in frames:
+        drawing = frame.drawing
+        points = _points(drawing)
+        curve_offsets = np.empty(len(drawing.curve_offsets), dtype=np.int32)
+        drawing.curve_offsets.foreach_get("value", curve_offsets)
+        strokes = len(curve_offsets) - 1
+        rests.append(points)
+        offsets.append(curve_offsets[1:].astype(np.int64) + start)
+        radii.append(_values(drawing, "radius", len(points), np.float32, 0.0))
+        cyclic.append(_values(drawing, "cyclic", max(strokes, 0), bool, False))
+        start += len(points)
+    rest = np.concatenate(rests)
+    if len(rest) == 0:
+        raise RigError(f"'{obj.name}' has no stroke points on the current frame")
+    try:
+        plane = solver.fit_plane(rest)
+        flat = plane.to_2d(rest)
+        size = float(np.linalg.norm(np.ptp(flat, axis=0)))
+        rings = stroke_silhouette(flat, np.concatenate(offsets), np.concatenate(radii), np.concatenate(cyclic),
+                                  min_radius=MIN_RADIUS_FRACTION * size)
+        graph = solver.build_graph(rings, spacing_for_count(rings, settings.density))
+    except ValueError as err:
+        raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
+
+    def commit(o):
+        for (_, frame), points in zip(frames, rests):
+            _store(frame.drawing, points)
+        o.shapedeform["gp_layers"] = "\n".join(layer.name for layer, _ in frames)
+        o.shapedeform["gp_frames"] = np.array([frame.frame_number for _, frame in frames], dtype=np.int32)
+
+    return Prepared(rest, plane, graph, False, commit)
+
+
+def _store(drawing, points):
+    attribute = drawing.attributes.get(REST_ATTRIBUTE) or drawing.attributes.new(REST_ATTRIBUTE, "FLOAT_VECTOR", "POINT")
+    attribute.data.foreach_set("vector", np.ascontiguousarray(points, dtype=np.float32).ravel())
+
+
+def read_rest(obj):
+    rests = []
+    for drawing in _bound_drawings(obj):
+        attribute = drawing.attributes.get(REST_ATTRIBUTE)
+        count = len(drawing.attributes["position"].data)
+        if attribute is None or len(attribute.data) != count:
+            raise RigError(f"'{obj.name}' lost its rest strokes (attribute {REST_ATTRIBUTE}); unbind it")
+        rests.append(read_vectors(attribute, count))
+    return np.concatenate(rests).astype(np.float64)
+
+
+def write(obj, points):
+    start = 0
+    for drawing in _bound_drawings(obj):
+        attribute = drawing.attributes["position"]
+        count = len(attribute.data)
+        attribute.data.foreach_set("vector", points[start:start + count].ravel())
+        drawing.tag_positions_changed()
+        start += count
+    obj.data.update_tag()
+
+
+def restore(obj):
+    for drawing in _bound_drawings(obj):
+        attribute = drawing.attributes.get(REST_ATTRIBUTE)
+        if attribute is None:
+            continue
+        rest = read_vectors(attribute, len(attribute.data))
+        drawing.attributes.remove(attribute)
+        drawing.attributes["position"].data.foreach_set("vector", rest.ravel())
+        drawing.tag_positions_changed()
+    for key in ("gp_layers", "gp_frames"):
+        obj.shapedeform.pop(key, None)
+    obj.data.update_tag()
+
+
+def selected(obj):
+    """Current local positions (k, 3) of selected stroke points of the rigged drawings."""
+    chosen = []
+    for drawing in _bound_drawings(obj):
+        points = _points(drawing)
+        mask = _values(drawing, ".selection", len(points), bool, False)
+        chosen.append(points[mask])
+    return np.concatenate(chosen).astype(np.float64) if chosen else np.empty((0, 3))
