@@ -76,3 +76,91 @@ def standard_drag(graph, move=(-0.25, 0.2), radius=0.06):
 
 
 SHAPES = {"flower": flower, "horse": horse, "character": character, "glyph B": glyph}
+
+
+# ---------------------------------------------------------------------------------------------
+# Drags for the peer comparison (benchmarks/compare.py). A drag is a list of handle groups, each
+# a set of graph points and the 2D affine motion (M, t) taking their rest positions to targets:
+# ``target = rest @ M.T + t``. Groups are chosen in bounding-box fractions (u, v in [0, 1]), so
+# the same drag applies to a shape at any resolution.
+
+def _unit(graph):
+    low = graph.points.min(axis=0)
+    extent = np.ptp(graph.points, axis=0)
+    return (graph.points - low) / extent, low, extent
+
+
+def _disk(graph, u, v, radius):
+    """Points within ``radius`` (a fraction of the shape's size) of bounding-box point (u, v)."""
+    _, low, extent = _unit(graph)
+    centre = low + np.array([u, v]) * extent
+    return np.flatnonzero(np.linalg.norm(graph.points - centre, axis=1) < radius * graph.size)
+
+
+def _strip(graph, below=None, above=None):
+    unit, _, _ = _unit(graph)
+    mask = np.ones(graph.n, dtype=bool)
+    if below is not None:
+        mask &= unit[:, 1] <= below
+    if above is not None:
+        mask &= unit[:, 1] >= above
+    return np.flatnonzero(mask)
+
+
+def _shift(graph, du, dv):
+    _, _, extent = _unit(graph)
+    return np.eye(2), np.array([du, dv]) * extent
+
+
+def _turn(graph, u, v, degrees):
+    _, low, extent = _unit(graph)
+    pivot = low + np.array([u, v]) * extent
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    rotation = np.array([[c, -s], [s, c]])
+    return rotation, pivot - rotation @ pivot
+
+
+_PIN = (np.eye(2), np.zeros(2))
+
+
+def _drags_horse(g):
+    hooves = _strip(g, below=0.06)
+    head = _disk(g, 0.93, 0.78, 0.06)
+    tail = _disk(g, 0.06, 0.55, 0.05)
+    front = np.intersect1d(hooves, np.flatnonzero(g.points[:, 0] > g.points[:, 0].mean()))
+    hind = np.setdiff1d(hooves, front)
+    body = _disk(g, 0.45, 0.62, 0.06)
+    return {
+        "bend": [(hooves, _PIN), (head, _shift(g, -0.3, 0.25))],
+        "stretch": [(np.union1d(hind, tail), _PIN), (np.union1d(front, head), _shift(g, 0.3, 0.0))],
+        "rotate": [(np.union1d(hooves, body), _PIN), (head, _turn(g, 0.75, 0.62, -90.0))],
+    }
+
+
+def _drags_glyph(g):
+    bottom = _strip(g, below=0.04)
+    top = _strip(g, above=0.96)
+    return {
+        "bend": [(bottom, _PIN), (top, _shift(g, 0.45, -0.1))],
+        "stretch": [(bottom, _PIN), (top, _shift(g, 0.0, 0.4))],
+        "rotate": [(bottom, _PIN), (top, _turn(g, 0.05, 0.55, 90.0))],
+    }
+
+
+DRAGS = {"horse": _drags_horse, "glyph B": _drags_glyph}
+"""Shape name -> function(graph) -> {drag name: [(point indices, (M, t)), ...]}."""
+
+
+def drag_targets(graph, groups):
+    """Handles and targets of a drag (groups as in ``DRAGS``), in group order.
+
+    Returns
+    -------
+    handles : (h,) int ndarray
+    targets : (h, 2) float ndarray
+    """
+    handles = np.concatenate([indices for indices, _ in groups])
+    if len(np.unique(handles)) != len(handles):
+        raise ValueError("handle groups overlap")
+    targets = np.concatenate([graph.points[indices] @ m.T + t for indices, (m, t) in groups])
+    return handles, targets
