@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Handles: ordinary Empty objects, one collection per rig, parented to the rigged object.
 
-A handle's Empty is parented to the shape's object (so moving the object carries its rig) and
+A handle's Empty is parented to the shape's object (so moving the object carries its rig;
+except on curves with path animation, which would carry children along the path) and
 drawn as a circle in the shape's plane, as big as the region of the shape it owns.
 """
 
@@ -67,10 +68,14 @@ def add(obj, location, depsgraph=None):
     empty.empty_display_type = "CIRCLE"
     empty.empty_display_size = radius
     _collection(obj).objects.link(empty)
-    empty.parent = obj
-    empty.matrix_parent_inverse.identity()
     # A Matrix, not a list: a nested list would be read column by column.
-    empty.matrix_basis = Matrix(matrix.tolist())
+    if obj.type == "CURVE" and obj.data.use_path:
+        # A curve with path animation carries its children along the path: leave it unparented.
+        empty.matrix_world = Matrix((world @ matrix).tolist())
+    else:
+        empty.parent = obj
+        empty.matrix_parent_inverse.identity()
+        empty.matrix_basis = Matrix(matrix.tolist())
     empty.shapedeform.rig = obj
     item = settings.handles.add()
     item.object = empty

@@ -1,6 +1,137 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-from . import RigError
+"""Curves: Bezier and poly splines, several of them (text converted to a curve has holes).
+
+Closed splines bound the shape; control points and both Bezier handles of every spline are
+bound to its graph, so open splines follow the shape they lie in. A curve with no closed spline
+is rigged inside a silhouette swept around its splines. Points are ordered spline after spline:
+a Bezier spline gives its control points, then left handles, then right handles; a poly or NURBS
+spline its points. The rest points are kept as the ID property ``sd_rest`` of the curve data
+(float64, so float32 coordinates come back bit for bit).
+"""
+
+import numpy as np
+
+from ... import solver
+from ...solver.outline import sample_bezier, spacing_for_count
+from ...solver.silhouette import stroke_silhouette
+from . import Prepared, RigError
+
+REST_PROPERTY = "sd_rest"
+# Sweep radius around open splines when no spline is closed, as a fraction of the curve's size
+# (or the bevel depth when that is larger).
+SWEEP_FRACTION = 0.02
+
+
+def _vectors(collection, name, width):
+    flat = np.empty(len(collection) * width, dtype=np.float32)
+    collection.foreach_get(name, flat)
+    return flat.reshape(-1, width)
+
+
+def points(curve):
+    """All control points and handles, (p, 3) float32, in the rig's order."""
+    parts = [np.empty((0, 3), np.float32)]
+    for spline in curve.splines:
+        if spline.type == "BEZIER":
+            bezier = spline.bezier_points
+            parts += [_vectors(bezier, name, 3) for name in ("co", "handle_left", "handle_right")]
+        else:
+            parts.append(_vectors(spline.points, "co", 4)[:, :3])
+    return np.concatenate(parts)
+
+
+def _rings_and_strokes(curve, flat):
+    """Closed splines as rings, open ones as polylines, in plane coordinates."""
+    rings, strokes, start = [], [], 0
+    for spline in curve.splines:
+        if spline.type == "BEZIER":
+            k = len(spline.bezier_points)
+            co, left, right = flat[start:start + k], flat[start + k:start + 2 * k], flat[start + 2 * k:start + 3 * k]
+            line = sample_bezier(co, left, right, spline.use_cyclic_u, spline.resolution_u)
+            start += 3 * k
+        else:
+            k = len(spline.points)
+            line = flat[start:start + k]
+            start += k
+        if spline.use_cyclic_u and k >= 2:
+            rings.append(line)
+        elif len(line):
+            strokes.append(line)
+    return rings, strokes
 
 
 def prepare(obj, settings):
-    raise RigError("not yet")
+    curve = obj.data
+    rest = points(curve)
+    if len(rest) == 0:
+        raise RigError(f"'{obj.name}' has no control points")
+    try:
+        plane = solver.fit_plane(rest)
+        flat = plane.to_2d(rest)
+        rings, strokes = _rings_and_strokes(curve, flat)
+        if not rings:
+            size = float(np.linalg.norm(np.ptp(flat, axis=0)))
+            radius = max(curve.bevel_depth, SWEEP_FRACTION * size)
+            offsets = np.concatenate([[0], np.cumsum([len(s) for s in strokes])])
+            rings = stroke_silhouette(np.concatenate(strokes), offsets, np.full(offsets[-1], radius))
+        graph = solver.build_graph(rings, spacing_for_count(rings, settings.density))
+    except ValueError as err:
+        raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
+
+    def commit(o):
+        o.data[REST_PROPERTY] = rest.astype(np.float64).ravel()
+
+    return Prepared(rest, plane, graph, False, commit)
+
+
+def read_rest(obj):
+    values = obj.data.get(REST_PROPERTY)
+    if values is None:
+        raise RigError(f"'{obj.name}' lost its rest shape (property {REST_PROPERTY}); bind it again")
+    rest = np.asarray(values, dtype=np.float64).reshape(-1, 3)
+    if len(rest) != len(points(obj.data)):
+        raise RigError(f"'{obj.name}' changed its control points since it was bound; unbind and bind it again")
+    return rest
+
+
+def write(obj, values):
+    curve = obj.data
+    start = 0
+    for spline in curve.splines:
+        if spline.type == "BEZIER":
+            bezier = spline.bezier_points
+            k = len(bezier)
+            for name in ("co", "handle_left", "handle_right"):
+                bezier.foreach_set(name, np.ascontiguousarray(values[start:start + k]).ravel())
+                start += k
+        else:
+            k = len(spline.points)
+            co = _vectors(spline.points, "co", 4)
+            co[:, :3] = values[start:start + k]
+            spline.points.foreach_set("co", co.ravel())
+            start += k
+    curve.update_tag()
+
+
+def restore(obj):
+    values = obj.data.get(REST_PROPERTY)
+    if values is None:
+        return
+    write(obj, np.asarray(values, dtype=np.float64).astype(np.float32).reshape(-1, 3))
+    del obj.data[REST_PROPERTY]
+
+
+def selected(obj):
+    """Current local positions (k, 3) of selected control points."""
+    chosen = [np.empty((0, 3))]
+    for spline in obj.data.splines:
+        if spline.type == "BEZIER":
+            bezier = spline.bezier_points
+            mask = np.empty(len(bezier), dtype=bool)
+            bezier.foreach_get("select_control_point", mask)
+            chosen.append(_vectors(bezier, "co", 3)[mask])
+        else:
+            mask = np.empty(len(spline.points), dtype=bool)
+            spline.points.foreach_get("select", mask)
+            chosen.append(_vectors(spline.points, "co", 4)[mask, :3])
+    return np.concatenate(chosen).astype(np.float64)

@@ -1,0 +1,104 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Rigging curves: text converted to a curve (letters with holes), open splines, refusals."""
+
+import bpy
+import numpy as np
+import pytest
+
+import rig_checks as checks
+
+
+def curve_points(obj):
+    parts = []
+    for spline in obj.data.splines:
+        if spline.type == "BEZIER":
+            for name in ("co", "handle_left", "handle_right"):
+                flat = np.empty(len(spline.bezier_points) * 3, np.float32)
+                spline.bezier_points.foreach_get(name, flat)
+                parts.append(flat.reshape(-1, 3))
+        else:
+            flat = np.empty(len(spline.points) * 4, np.float32)
+            spline.points.foreach_get("co", flat)
+            parts.append(flat.reshape(-1, 4))
+    return parts
+
+
+def evaluated_vertices(obj):
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    points = np.array([v.co for v in mesh.vertices])
+    evaluated.to_mesh_clear()
+    return points
+
+
+def text_curve(body="Ba"):
+    bpy.ops.object.text_add()
+    bpy.context.object.data.body = body
+    bpy.ops.object.convert(target="CURVE")
+    return bpy.context.active_object
+
+
+def test_text_curve_with_holes_follows_and_unbinds_exactly(addon, tmp_path):
+    obj = text_curve()
+    obj.name = "Text"
+    rest = [p.copy() for p in curve_points(obj)]
+    rest_cos = np.concatenate([p[:len(p)] for p in rest])
+    rest_shape = evaluated_vertices(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    lo, hi = rest_cos.min(axis=0), rest_cos.max(axis=0)
+    checks.add_handle(obj, checks.world(obj, [lo[0], 0.5 * (lo[1] + hi[1]), 0]))
+    handle = checks.add_handle(obj, checks.world(obj, [0.8 * lo[0] + 0.2 * hi[0], hi[1], 0]))
+    np.testing.assert_allclose(evaluated_vertices(obj), rest_shape, atol=1e-4)
+    handle.location.x += 0.15
+    bpy.context.view_layer.update()
+    posed = evaluated_vertices(obj)
+    assert np.all(np.isfinite(posed)) and np.abs(posed[:, 2]).max() < 1e-5
+    assert np.abs(posed - rest_shape).max() == pytest.approx(0.15, abs=0.05)
+    # Control points and both handles followed (the tallest point is near the handle).
+    moved = np.concatenate([p for p in curve_points(obj)])
+    assert np.abs(moved - rest_cos).max() > 0.1
+
+    path = str(tmp_path / "text.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["Text"]
+    obj.shapedeform.handles[1].object.location.x -= 0.15
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(evaluated_vertices(obj), rest_shape, atol=1e-4)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(curve_points(obj), rest))
+    assert "sd_rest" not in obj.data and len(bpy.data.objects) == 1
+
+
+def test_open_splines_alone_are_swept_into_a_silhouette(addon):
+    bpy.ops.curve.primitive_bezier_curve_add()
+    obj = bpy.context.active_object
+    rest = [p.copy() for p in curve_points(obj)]
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    co = rest[0]
+    checks.add_handle(obj, checks.world(obj, co[0]))
+    handle = checks.add_handle(obj, checks.world(obj, co[-1]))
+    handle.location.y += 0.5
+    bpy.context.view_layer.update()
+    after = curve_points(obj)
+    assert after[0][-1][1] == pytest.approx(co[-1][1] + 0.5, abs=0.05)
+    assert after[0][0] == pytest.approx(co[0], abs=0.05)
+    bpy.ops.shapedeform.unbind()
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(curve_points(obj), rest))
+
+
+def test_curve_with_no_area_is_refused(addon):
+    curve = bpy.data.curves.new("Line", "CURVE")
+    spline = curve.splines.new("POLY")
+    spline.points.add(2)
+    for i, point in enumerate(spline.points):
+        point.co = (i, 0.5 * i, 0, 1)
+    spline.use_cyclic_u = True
+    obj = bpy.data.objects.new("Line", curve)
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    before = checks.snapshot()
+    with pytest.raises(RuntimeError, match="no area"):
+        bpy.ops.shapedeform.bind()
+    assert checks.snapshot() == before and "sd_rest" not in curve
