@@ -1,0 +1,309 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Dragging handles in the 3D viewport: the modal operator and its per-event logic.
+
+``invoke`` only runs with a window, so everything an event does lives in :class:`DragSession`
+(plain Python, driven by any object with ``type``, ``value``, ``mouse_x``, ``mouse_y`` and
+``ctrl``) and in the functions :func:`begin`, :func:`move`, :func:`confirm` and :func:`cancel`,
+which take a mouse *ray* and are usable from scripts and tests.
+
+How the mouse maps to the rig: the mouse ray (from ``bpy_extras.view3d_utils``) meets the rig's
+plane in world space; the handle nearest to that first hit is grabbed, and afterwards it moves
+by exactly as much as the hit point does, in the plane, so it never jumps to the cursor.
+"""
+
+import bpy
+import numpy as np
+from bpy_extras import view3d_utils
+
+from ..solver.drag import nearest, parent_offset, ray_plane, transform_points, world_plane
+from . import handles, rig
+from .sources import RigError
+
+HEADER = {
+    False: "Shape Deform drag: click a handle to grab it (Ctrl+click: pin the shape there) | "
+           "Right click / Esc: cancel",
+    True: "Shape Deform drag: move the mouse | Click / Enter: confirm | Right click / Esc: cancel",
+}
+
+# Events left to the viewport while dragging, so the animator can still orbit, pan and zoom.
+NAVIGATION = {"MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "TRACKPADPAN", "TRACKPADZOOM",
+              "MOUSEROTATE", "MOUSESMARTZOOM", "NDOF_MOTION"}
+
+
+def rig_object(context):
+    """The rig the user means: the active object if bound, or the rig of an active handle."""
+    obj = context.active_object
+    if obj is None:
+        return None
+    owner = handles.rig_of(obj)
+    if owner is not None:
+        return owner
+    return obj if obj.shapedeform.is_bound else None
+
+
+def mouse_ray(region, region_3d, mouse):
+    """World ray (origin, direction) under ``mouse`` (x, y in region pixels)."""
+    origin = view3d_utils.region_2d_to_origin_3d(region, region_3d, mouse)
+    direction = view3d_utils.region_2d_to_vector_3d(region, region_3d, mouse)
+    return np.array(origin, dtype=np.float64), np.array(direction, dtype=np.float64)
+
+
+def _matrix(m):
+    return np.array(m, dtype=np.float64)
+
+
+class DragState:
+    """One grab: what is dragged, where it started, and what to put back on cancel.
+
+    Attributes
+    ----------
+    obj : bpy.types.Object
+        The rigged object.
+    handle : bpy.types.Object
+        The Empty being moved.
+    pinned : bool
+        ``handle`` is a pin made for this drag (removed on cancel).
+    """
+
+    def __init__(self, obj, handle, pinned, plane, hit, collection_was_missing):
+        self.obj = obj
+        self.handle = handle
+        self.pinned = pinned
+        self.plane_origin, self.plane_normal = plane
+        self.start_hit = hit
+        self.start_location = tuple(handle.location)  # floats read from float32: restored bit for bit
+        self.collection_was_missing = collection_was_missing
+        self.moved = False
+
+
+def _plane(obj):
+    """The rig's plane in world space, (origin, unit normal)."""
+    plane = rig.get(obj).plane
+    try:
+        return world_plane(_matrix(obj.matrix_world), plane.origin, plane.normal)
+    except ValueError as err:
+        raise RigError(f"'{obj.name}': {err}") from None
+
+
+def begin(context, obj, ray, pin=False):
+    """Grab the handle of ``obj`` nearest to where ``ray`` meets its plane.
+
+    Parameters
+    ----------
+    context : bpy.types.Context
+    obj : bpy.types.Object
+        A bound object.
+    ray : (origin, direction)
+        World-space mouse ray.
+    pin : bool
+        Instead of a handle, grab the nearest point of the shape: a new handle (a pin) is
+        made there for this drag; confirming keeps it, cancelling removes it.
+
+    Returns
+    -------
+    DragState
+
+    Raises
+    ------
+    RigError
+        Not bound, the ray misses the plane (edge-on view), no handle to grab, or the pin
+        could not be made; nothing was changed.
+    """
+    if obj is None or not obj.shapedeform.is_bound:
+        raise RigError("Select a bound object or one of its handles to drag")
+    plane = _plane(obj)
+    hit = ray_plane(*ray, *plane)
+    if hit is None:
+        raise RigError(f"The view looks at '{obj.name}' edge-on: turn the view to drag on its plane")
+    settings = obj.shapedeform
+    if pin:
+        current = rig.get(obj)
+        shape = transform_points(_matrix(obj.matrix_world), current.points(current.posed))
+        index = nearest(shape, hit)
+        if index < 0:
+            raise RigError(f"'{obj.name}' has no points to pin")
+        missing = settings.handle_collection is None
+        handle = handles.add(obj, tuple(shape[index]))
+        context.view_layer.update()
+        return DragState(obj, handle, True, plane, hit, missing)
+    candidates = [item.object for item in settings.handles if item.object is not None]
+    if not candidates:
+        raise RigError(f"'{obj.name}' has no handles: add one, or Ctrl+click to pin the shape")
+    centres = np.array([_matrix(h.matrix_world)[:3, 3] for h in candidates]).reshape(-1, 3)
+    return DragState(obj, candidates[nearest(centres, hit)], False, plane, hit, False)
+
+
+def move(context, state, ray):
+    """Move the grabbed handle by how far the ray's hit on the plane moved; pose the shape.
+
+    Returns
+    -------
+    bool
+        False when the ray misses the plane (the handle stays where it was).
+    """
+    hit = ray_plane(*ray, state.plane_origin, state.plane_normal)
+    if hit is None:
+        return False
+    handle = state.handle
+    # A handle's location lives in its parent's space (handles are parented to their rig).
+    space = np.eye(4) if handle.parent is None else \
+        _matrix(handle.parent.matrix_world) @ _matrix(handle.matrix_parent_inverse)
+    offset = parent_offset(space, hit - state.start_hit)
+    handle.location = tuple(np.asarray(state.start_location) + offset)
+    state.moved = True
+    # The depsgraph handler poses the shape when it sees the handle's transform change.
+    context.view_layer.update()
+    return True
+
+
+def confirm(context, state):
+    """Keep the drag; with auto-keying on, key the moved handle's location at this frame.
+
+    Returns
+    -------
+    list of bpy.types.Object
+        The handles that were keyed.
+    """
+    scene = context.scene
+    keyed = []
+    if scene.tool_settings.use_keyframe_insert_auto and (state.moved or state.pinned):
+        state.handle.keyframe_insert("location", frame=scene.frame_current)
+        keyed.append(state.handle)
+    return keyed
+
+
+def cancel(context, state):
+    """Put everything back as it was before the grab: handle, pin, and the shape's points."""
+    obj = state.obj
+    if state.pinned:
+        handles.remove(obj, {state.handle})
+        collection = obj.shapedeform.handle_collection
+        if state.collection_was_missing and collection is not None and not collection.all_objects:
+            obj.shapedeform.handle_collection = None
+            bpy.data.collections.remove(collection)
+    else:
+        state.handle.location = state.start_location
+    context.view_layer.update()
+    # The solve depends only on the handles, so posing again gives back the exact shape.
+    rig.pose_safely(obj, context.evaluated_depsgraph_get())
+
+
+class DragSession:
+    """The state of one run of the modal operator, driven by events.
+
+    Parameters
+    ----------
+    obj : bpy.types.Object
+        The rig to drag on.
+    region, region_3d
+        The viewport's WINDOW region (``x``, ``y``, ``width``, ``height``) and its
+        ``RegionView3D``; stand-ins with the same attributes work.
+    """
+
+    def __init__(self, obj, region, region_3d):
+        self.obj = obj
+        self.region = region
+        self.region_3d = region_3d
+        self.state = None
+        self.message = ""
+
+    def header(self):
+        return HEADER[self.state is not None]
+
+    def ray(self, event):
+        mouse = (event.mouse_x - self.region.x, event.mouse_y - self.region.y)
+        return mouse_ray(self.region, self.region_3d, mouse)
+
+    def event(self, context, event):
+        """Act on one event; returns the operator's result set."""
+        self.message = ""
+        kind, value = event.type, event.value
+        if kind in {"ESC", "RIGHTMOUSE"} and value == "PRESS":
+            if self.state is not None:
+                cancel(context, self.state)
+                self.state = None
+            return {"CANCELLED"}
+        if kind in {"RET", "NUMPAD_ENTER"} and value == "PRESS":
+            return self._confirm(context) if self.state is not None else {"CANCELLED"}
+        if kind == "LEFTMOUSE":
+            if self.state is None and value == "PRESS":
+                try:
+                    self.state = begin(context, self.obj, self.ray(event), pin=bool(event.ctrl))
+                except RigError as err:
+                    self.message = str(err)
+                return {"RUNNING_MODAL"}
+            if self.state is not None and (value == "PRESS" or (value == "RELEASE" and self.state.moved)):
+                return self._confirm(context)  # click-move-click, or press-drag-release
+            return {"RUNNING_MODAL"}
+        if kind in {"MOUSEMOVE", "INBETWEEN_MOUSEMOVE"}:
+            if self.state is not None:
+                try:
+                    move(context, self.state, self.ray(event))
+                except ValueError as err:
+                    self.message = str(err)
+            return {"RUNNING_MODAL"}
+        if kind in NAVIGATION:
+            return {"PASS_THROUGH"}
+        return {"RUNNING_MODAL"}
+
+    def _confirm(self, context):
+        keyed = confirm(context, self.state)
+        if keyed:
+            self.message = f"Keyed {', '.join(h.name for h in keyed)}"
+        self.state = None
+        return {"FINISHED"}
+
+
+def _window_region(context):
+    """The 3D viewport's main region and its RegionView3D (the sidebar has neither)."""
+    area = context.area
+    if area is None or area.type != "VIEW_3D":
+        return None, None
+    region = context.region
+    if region is None or region.type != "WINDOW":
+        region = next((r for r in area.regions if r.type == "WINDOW"), None)
+    return region, area.spaces.active.region_3d
+
+
+class SHAPEDEFORM_OT_drag(bpy.types.Operator):
+    """Drag a handle of the active rig with the mouse (Ctrl+click pins the shape anywhere)"""
+
+    bl_idname = "shapedeform.drag"
+    bl_label = "Drag Handle"
+    bl_options = {"REGISTER", "UNDO", "BLOCKING"}
+
+    def invoke(self, context, event):
+        obj = rig_object(context)
+        if obj is None:
+            self.report({"ERROR"}, "Select a bound object or one of its handles to drag")
+            return {"CANCELLED"}
+        region, region_3d = _window_region(context)
+        if region is None or region_3d is None:
+            self.report({"ERROR"}, "Drag works in a 3D viewport")
+            return {"CANCELLED"}
+        self.area = context.area
+        self.session = DragSession(obj, region, region_3d)
+        self.area.header_text_set(self.session.header())
+        context.window_manager.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        session = self.session
+        result = session.event(context, event)
+        if session.message:
+            self.report({"WARNING"} if "FINISHED" not in result else {"INFO"}, session.message)
+        area = getattr(self, "area", None)
+        if area is not None:
+            area.header_text_set(None if result & {"FINISHED", "CANCELLED"} else session.header())
+            area.tag_redraw()
+        return result
+
+    def execute(self, context):
+        # Reached only without a window ('INVOKE_DEFAULT' headless): a drag needs the mouse.
+        self.report({"ERROR"}, "Drag needs the mouse in a 3D viewport; from scripts, move the handle Empties")
+        return {"CANCELLED"}
+
+
+classes = (SHAPEDEFORM_OT_drag,)
+
+register, unregister = bpy.utils.register_classes_factory(classes)

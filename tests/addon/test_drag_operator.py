@@ -1,0 +1,185 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The drag operator: its per-event functions, and ``modal()`` driven by stand-in events.
+
+``invoke`` needs a window, so the tests build a stand-in viewport (an orthographic top view
+of a 200 x 100 pixel region) that ``bpy_extras.view3d_utils`` accepts, and call the operator's
+``modal`` with stand-in events.
+"""
+
+from types import SimpleNamespace
+
+import bpy
+import numpy as np
+from bpy_extras import anim_utils, view3d_utils
+from mathutils import Matrix
+
+import rig_checks as checks
+from test_rig_mesh import grid
+
+
+def viewport():
+    """Top orthographic view: world x in [-4, 4] and y in [-2, 2] fill the region."""
+    view = Matrix.Translation((0.0, 0.0, -10.0))
+    projection = Matrix.Diagonal((0.25, 0.5, -0.01, 1.0))
+    region = SimpleNamespace(x=0, y=0, width=200, height=100, type="WINDOW")
+    region_3d = SimpleNamespace(view_matrix=view, perspective_matrix=projection @ view,
+                                is_perspective=False, view_perspective="ORTHO")
+    return region, region_3d
+
+
+def event(kind, value, world=None, ctrl=False, view=None):
+    region, region_3d = view or viewport()
+    x = y = 0
+    if world is not None:
+        x, y = view3d_utils.location_3d_to_region_2d(region, region_3d, world)
+    return SimpleNamespace(type=kind, value=value, mouse_x=x, mouse_y=y, ctrl=ctrl)
+
+
+def rig_with_two_handles():
+    obj = grid()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    left = checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    right = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    return obj, left, right
+
+
+def operator_stand_in(addon, obj):
+    drag = addon.shapedeform_addon.drag
+    reports = []
+    session = drag.DragSession(obj, *viewport())
+    op = SimpleNamespace(session=session, report=lambda kind, text: reports.append(text))
+    return drag.SHAPEDEFORM_OT_drag.modal, op, reports
+
+
+def test_modal_drag_follows_the_mouse_and_confirms(addon):
+    obj, left, right = rig_with_two_handles()
+    modal, op, reports = operator_stand_in(addon, obj)
+    rest = checks.mesh_points(obj).copy()
+    start = np.array(right.matrix_world.translation)
+    # Grab a little off the handle: the nearest handle is grabbed and keeps its offset.
+    grab = start + np.array([0.05, -0.05, 0.0])
+    assert modal(op, bpy.context, event("LEFTMOUSE", "PRESS", grab)) == {"RUNNING_MODAL"}
+    assert op.session.state.handle == right
+    assert "confirm" in op.session.header()
+    assert modal(op, bpy.context, event("MOUSEMOVE", "NOTHING", grab + np.array([0.0, 0.5, 0.0]))) \
+        == {"RUNNING_MODAL"}
+    np.testing.assert_allclose(right.matrix_world.translation, start + np.array([0, 0.5, 0]), atol=1e-5)
+    posed = checks.evaluated_mesh_points(obj).copy()
+    tip = np.argmin(np.linalg.norm(rest - (start - np.array(obj.location)), axis=1))
+    assert posed[tip, 1] - rest[tip, 1] > 0.45  # the shape followed live
+    assert modal(op, bpy.context, event("RET", "PRESS")) == {"FINISHED"}
+    assert op.session.state is None
+    np.testing.assert_allclose(right.matrix_world.translation, start + np.array([0, 0.5, 0]), atol=1e-5)
+    assert checks.evaluated_mesh_points(obj).tobytes() == posed.tobytes()
+    assert reports == []
+
+
+def test_modal_cancel_restores_handle_and_shape_exactly(addon):
+    obj, left, right = rig_with_two_handles()
+    right.location.y += 0.2
+    bpy.context.view_layer.update()
+    before_points = checks.evaluated_mesh_points(obj).copy()
+    before_location = tuple(right.location)
+    for cancel in ("ESC", "RIGHTMOUSE"):
+        modal, op, _ = operator_stand_in(addon, obj)
+        start = np.array(right.matrix_world.translation)
+        modal(op, bpy.context, event("LEFTMOUSE", "PRESS", start))
+        modal(op, bpy.context, event("MOUSEMOVE", "NOTHING", start + np.array([0.3, -0.4, 0.0])))
+        assert np.abs(checks.evaluated_mesh_points(obj) - before_points).max() > 0.1
+        assert modal(op, bpy.context, event(cancel, "PRESS")) == {"CANCELLED"}
+        assert tuple(right.location) == before_location
+        assert checks.evaluated_mesh_points(obj).tobytes() == before_points.tobytes()
+        assert checks.mesh_points(obj).tobytes() == before_points.tobytes()
+
+
+def test_ctrl_click_pins_the_shape_and_cancel_removes_the_pin(addon):
+    obj, left, right = rig_with_two_handles()
+    before_points = checks.evaluated_mesh_points(obj).copy()
+    before_objects = sorted(o.name for o in bpy.data.objects)
+    modal, op, _ = operator_stand_in(addon, obj)
+    middle = np.array(checks.world(obj, [0.0, 0.5, 0.0]))
+    modal(op, bpy.context, event("LEFTMOUSE", "PRESS", middle, ctrl=True))
+    pin = op.session.state.handle
+    assert op.session.state.pinned and pin not in (left, right)
+    assert len(obj.shapedeform.handles) == 3
+    modal(op, bpy.context, event("MOUSEMOVE", "NOTHING", middle + np.array([0.0, 0.4, 0.0])))
+    moved = checks.evaluated_mesh_points(obj)
+    top_middle = np.argmin(np.linalg.norm(before_points - (middle - np.array(obj.location)), axis=1))
+    assert moved[top_middle, 1] - before_points[top_middle, 1] > 0.2
+    assert modal(op, bpy.context, event("RIGHTMOUSE", "PRESS")) == {"CANCELLED"}
+    assert [i.object for i in obj.shapedeform.handles] == [left, right]
+    assert sorted(o.name for o in bpy.data.objects) == before_objects
+    assert checks.evaluated_mesh_points(obj).tobytes() == before_points.tobytes()
+
+    # Confirming keeps the pin as a handle, so the pose holds.
+    modal, op, _ = operator_stand_in(addon, obj)
+    modal(op, bpy.context, event("LEFTMOUSE", "PRESS", middle, ctrl=True))
+    modal(op, bpy.context, event("MOUSEMOVE", "NOTHING", middle + np.array([0.0, 0.4, 0.0])))
+    assert modal(op, bpy.context, event("LEFTMOUSE", "RELEASE")) == {"FINISHED"}
+    assert len(obj.shapedeform.handles) == 3
+
+
+def test_clicks_that_grab_nothing_explain_why(addon):
+    obj = grid()
+    bpy.ops.shapedeform.bind()
+    modal, op, reports = operator_stand_in(addon, obj)
+    assert modal(op, bpy.context, event("LEFTMOUSE", "PRESS", (0.0, 0.0, 0.0))) == {"RUNNING_MODAL"}
+    assert op.session.state is None and "no handles" in reports[-1]
+    assert modal(op, bpy.context, event("WHEELUPMOUSE", "PRESS")) == {"PASS_THROUGH"}
+    assert modal(op, bpy.context, event("RET", "PRESS")) == {"CANCELLED"}
+    # Looking at the plane edge-on: the ray never meets it.
+    drag = addon.shapedeform_addon.drag
+    edge_on = (np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    try:
+        drag.begin(bpy.context, obj, edge_on)
+    except addon.shapedeform_addon.sources.RigError as err:
+        assert "edge-on" in str(err)
+    else:
+        raise AssertionError("an edge-on ray grabbed something")
+
+
+def test_auto_keying_keys_the_moved_handle(addon):
+    obj, left, right = rig_with_two_handles()
+    scene = bpy.context.scene
+    scene.tool_settings.use_keyframe_insert_auto = True
+    scene.frame_set(7)
+    drag = addon.shapedeform_addon.drag
+    ray = lambda p: (np.array([p[0], p[1], 5.0]), np.array([0.0, 0.0, -1.0]))  # noqa: E731
+    start = np.array(right.matrix_world.translation)
+    state = drag.begin(bpy.context, obj, ray(start))
+    drag.move(bpy.context, state, ray(start + [0.0, 0.3, 0.0]))
+    assert drag.confirm(bpy.context, state) == [right]
+    animation = right.animation_data
+    bag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+    keyed = {(c.data_path, c.array_index): [tuple(k.co) for k in c.keyframe_points] for c in bag.fcurves}
+    assert keyed[("location", 1)] == [(7.0, right.location.y)]
+    assert left.animation_data is None
+
+
+def test_undo_after_a_drag_gives_back_the_pose_and_the_rig_keeps_working(addon):
+    obj, left, right = rig_with_two_handles()
+    before = checks.evaluated_mesh_points(obj).copy()
+    bpy.ops.ed.undo_push(message="before drag")
+    drag = addon.shapedeform_addon.drag
+    ray = lambda p: (np.array([p[0], p[1], 5.0]), np.array([0.0, 0.0, -1.0]))  # noqa: E731
+    start = np.array(right.matrix_world.translation)
+    state = drag.begin(bpy.context, obj, ray(start))
+    drag.move(bpy.context, state, ray(start + [0.0, 0.4, 0.0]))
+    drag.confirm(bpy.context, state)
+    bpy.ops.ed.undo_push(message="Drag Handle")
+    dragged = checks.evaluated_mesh_points(obj).copy()
+    assert np.abs(dragged - before).max() > 0.2
+
+    bpy.ops.ed.undo()
+    obj = bpy.data.objects["Grid"]
+    right = obj.shapedeform.handles[1].object
+    np.testing.assert_allclose(right.matrix_world.translation, start, atol=1e-6)
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), before, atol=1e-6)
+    bpy.ops.ed.redo()
+    obj = bpy.data.objects["Grid"]
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), dragged, atol=1e-6)
+    # The rig was rebuilt lazily after undo and redo: moving a handle still poses.
+    obj.shapedeform.handles[1].object.location.y -= 0.4
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), before, atol=1e-4)
+    assert obj.shapedeform.status == ""
