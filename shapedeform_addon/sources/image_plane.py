@@ -1,3 +1,92 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
+"""Image planes (Import Images as Planes): a textured quad whose picture has alpha.
+
+Binding replaces the quad by a triangulated cut-out of the picture's silhouette: the paper's
+graph of the traced outline, so the cut-out is its own graph. Its UVs come from the affine map
+the quad's own UVs define, so every point shows the texel it showed on the quad and the picture
+looks the same before posing. The quad's mesh is kept (``obj.shapedeform.original_data``) and
+given back on unbind, untouched; the cut-out is then deleted.
+"""
+
+import bpy
+import numpy as np
+
+from ... import solver
+from ...solver.handles import apply_affine
+from ...solver.outline import spacing_for_count
+from ...solver.silhouette import fit_affine, image_cutout
+from . import Prepared, RigError, mesh as mesh_source
+
+# Shared with meshes once the cut-out is in place.
+read_rest, write, selected = mesh_source.read_rest, mesh_source.write, mesh_source.selected
+
+
+def _image(obj):
+    """The image with alpha textured on ``obj``, or None."""
+    for slot in obj.material_slots:
+        material = slot.material
+        if material is None or material.node_tree is None:
+            continue
+        for node in material.node_tree.nodes:
+            image = getattr(node, "image", None) if node.type == "TEX_IMAGE" else None
+            if image is not None and image.channels == 4 and image.alpha_mode != "NONE":
+                return image
+    return None
+
+
 def is_image_plane(obj):
-    return False
+    """A quad (4 vertices, one face, UVs) textured with an image that has alpha."""
+    data = obj.data
+    return (obj.type == "MESH" and len(data.vertices) == 4 and len(data.polygons) == 1
+            and data.uv_layers.active is not None and _image(obj) is not None)
+
+
+def prepare(obj, settings):
+    quad = obj.data
+    image = _image(obj)
+    width, height = image.size
+    if width < 2 or height < 2:
+        raise RigError(f"'{obj.name}': its image '{image.name}' has no pixels (is the file missing?)")
+    pixels = np.empty(width * height * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    corners = mesh_source.positions(quad).astype(np.float64)
+    loop_vertices = np.empty(len(quad.loops), dtype=np.int32)
+    quad.loops.foreach_get("vertex_index", loop_vertices)
+    uv = np.empty(len(quad.loops) * 2, dtype=np.float32)
+    quad.uv_layers.active.data.foreach_get("uv", uv)
+    try:
+        plane = solver.fit_plane(corners)
+        to_plane = fit_affine(uv.reshape(-1, 2), plane.to_2d(corners[loop_vertices]))
+        rings = [apply_affine(to_plane, ring / (width, height))
+                 for ring in image_cutout(pixels.reshape(height, width, 4))]
+        graph = solver.build_graph(rings, spacing_for_count(rings, settings.density))
+    except ValueError as err:
+        raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
+    vertices = plane.to_3d(graph.points).astype(np.float32)
+    uvs = apply_affine(np.linalg.inv(to_plane), graph.points)[graph.triangles].astype(np.float32)
+
+    def commit(o):
+        cutout = bpy.data.meshes.new(f"{quad.name} Cut-out")
+        cutout.from_pydata(vertices.tolist(), [], graph.triangles.tolist())
+        layer = cutout.uv_layers.new(name=quad.uv_layers.active.name)
+        layer.data.foreach_set("uv", uvs.ravel())
+        for material in quad.materials:
+            cutout.materials.append(material)
+        cutout.update()
+        o.shapedeform.original_data = quad
+        o.data = cutout
+        mesh_source.store_rest(cutout, vertices)
+
+    return Prepared(vertices, plane, graph, True, commit)
+
+
+def restore(obj):
+    original = obj.shapedeform.original_data
+    if original is None:
+        mesh_source.restore(obj)
+        return
+    cutout = obj.data
+    obj.data = original
+    obj.shapedeform.original_data = None
+    if cutout.users == 0:
+        bpy.data.meshes.remove(cutout)

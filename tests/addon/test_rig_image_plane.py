@@ -1,0 +1,91 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Rigging an image with alpha imported as a plane: the quad becomes a cut-out."""
+
+import bpy
+import numpy as np
+import pytest
+
+import rig_checks as checks
+
+W, H = 64, 48
+
+
+def import_picture(folder):
+    """A PNG with alpha (a disc and a block, colours that vary with x and y), imported as a plane."""
+    yy, xx = np.mgrid[:H, :W]
+    pixels = np.zeros((H, W, 4), np.float32)
+    pixels[..., 0], pixels[..., 1], pixels[..., 2] = xx / W, yy / H, 0.5
+    pixels[..., 3] = (((xx - 40) ** 2 + (yy - 22) ** 2) < 15 ** 2) | ((xx > 8) & (xx < 30) & (yy > 16) & (yy < 28))
+    image = bpy.data.images.new("picture", W, H, alpha=True)
+    image.pixels.foreach_set(pixels.ravel())
+    image.filepath_raw = str(folder / "picture.png")
+    image.file_format = "PNG"
+    image.save()
+    bpy.data.images.remove(image)
+    assert bpy.ops.image.import_as_mesh_planes(files=[{"name": "picture.png"}], directory=str(folder)) == {"FINISHED"}
+    return bpy.context.active_object, pixels
+
+
+def uv_of_points(mesh):
+    """Each vertex's UV (every loop of a vertex has the same UV on the cut-out)."""
+    loops = np.empty(len(mesh.loops), np.int32)
+    mesh.loops.foreach_get("vertex_index", loops)
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.uv_layers.active.data.foreach_get("uv", uv)
+    result = np.zeros((len(mesh.vertices), 2))
+    result[loops] = uv.reshape(-1, 2)
+    return result
+
+
+def test_image_plane_becomes_a_cutout_that_maps_the_image_exactly(addon, tmp_path):
+    obj, pixels = import_picture(tmp_path)
+    obj.rotation_euler = (1.2, 0.0, 0.3)  # Blender's importer stands pictures up; any angle works
+    bpy.context.view_layer.update()
+    quad = obj.data
+    quad_points = checks.mesh_points(obj).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert obj.data != quad and obj.shapedeform.kind == "IMAGE"
+    cutout = obj.data
+    points = checks.mesh_points(obj)
+    # UVs map the image exactly as the quad did: the quad maps x in [-w/2, w/2] to u in [0, 1].
+    lo, hi = quad_points.min(axis=0), quad_points.max(axis=0)
+    expected = (points[:, :2] - lo[:2]) / (hi[:2] - lo[:2])
+    np.testing.assert_allclose(uv_of_points(cutout), expected, atol=1e-5)
+    # The cut-out covers every visible pixel and not much more (a margin of about a pixel,
+    # which on this small picture is a fifth of its area).
+    visible = pixels[..., 3] > 0
+    area = checks.area(obj, points) / np.prod((hi - lo)[:2])
+    assert visible.mean() < area < 1.3 * visible.mean()
+    tris = checks.triangles(obj)
+    uv = uv_of_points(cutout)
+    yy, xx = np.nonzero(visible)
+    centres = np.stack([(xx + 0.5) / W, (yy + 0.5) / H], axis=1)
+    a, b, c = (uv[tris[:, k]] for k in range(3))
+    covered = np.zeros(len(centres), bool)
+    for start in range(0, len(tris), 256):  # chunked point-in-triangle test
+        sl = slice(start, start + 256)
+        d = lambda p, q: (q[None, :, 0] - p[None, :, 0]) * (centres[:, None, 1] - p[None, :, 1]) - \
+            (q[None, :, 1] - p[None, :, 1]) * (centres[:, None, 0] - p[None, :, 0])
+        s1, s2, s3 = d(a[sl], b[sl]), d(b[sl], c[sl]), d(c[sl], a[sl])
+        covered |= (((s1 >= -1e-9) & (s2 >= -1e-9) & (s3 >= -1e-9)) | ((s1 <= 1e-9) & (s2 <= 1e-9) & (s3 <= 1e-9))).any(axis=1)
+    assert covered.all(), f"{(~covered).sum()} visible pixels fall outside the cut-out"
+
+    left = checks.world(obj, points[np.argmin(points[:, 0])])
+    right = checks.world(obj, points[np.argmax(points[:, 0])])
+    checks.add_handle(obj, left)
+    handle = checks.add_handle(obj, right)
+    handle.location.y += 0.3  # in the picture's own space: handles are parented to it
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_mesh_points(obj)
+    checks.assert_posed(obj, points, posed, normal=np.array([0, 0, 1.0]), reached=[(right, handle)])
+
+    name = obj.name
+    path = str(tmp_path / "picture.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects[name]
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert len(obj.data.vertices) == 4 and obj.shapedeform.original_data is None
+    assert checks.mesh_points(obj).tobytes() == quad_points.tobytes()
+    assert len(bpy.data.meshes) == 1 and len(bpy.data.objects) == 1
