@@ -4,6 +4,22 @@
 import bpy
 
 
+def rigged_object(context):
+    """The object the panel shows: the active object, or the rig of an active handle."""
+    obj = context.active_object
+    if obj is not None and obj.shapedeform.rig is not None:
+        return obj.shapedeform.rig
+    return obj
+
+
+class SHAPEDEFORM_UL_handles(bpy.types.UIList):
+    def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0):
+        if item.object is None:
+            layout.label(text="(deleted)", icon="ERROR")
+        else:
+            layout.prop(item.object, "name", text="", emboss=False, icon="EMPTY_DATA")
+
+
 class SHAPEDEFORM_PT_panel(bpy.types.Panel):
     bl_label = "Shape Deform"
     bl_space_type = "VIEW_3D"
@@ -12,22 +28,39 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        obj = context.active_object
+        obj = rigged_object(context)
         if obj is None:
             layout.label(text="No active object")
             return
-        if obj.shapedeform.rig is not None:
-            obj = obj.shapedeform.rig
         settings = obj.shapedeform
         if not settings.is_bound:
-            layout.prop(settings, "graph_mode")
-            layout.prop(settings, "density")
-            layout.prop(settings, "layers")
-            layout.operator("shapedeform.bind")
+            col = layout.column()
+            col.prop(settings, "graph_mode")
+            col.prop(settings, "density")
+            if obj.type == "GREASEPENCIL":
+                col.prop(settings, "layers")
+            col.operator("shapedeform.bind", icon="MOD_MESHDEFORM")
             return
-        layout.operator("shapedeform.unbind")
+        layout.operator("shapedeform.unbind", icon="X")
+        if settings.status:
+            layout.label(text=settings.status, icon="ERROR")
+        layout.label(text="Handles")
+        row = layout.row()
+        row.template_list("SHAPEDEFORM_UL_handles", "", settings, "handles", settings, "active_handle", rows=3)
+        buttons = row.column(align=True)
+        buttons.operator("shapedeform.add_handle", text="", icon="ADD")
+        buttons.operator("shapedeform.remove_handle", text="", icon="REMOVE")
+        layout.prop(settings, "region_size")
+        col = layout.column(align=True)
+        col.label(text="Energy Weights")
+        col.prop(settings, "weight_laplacian")
+        col.prop(settings, "weight_mvc")
+        col.prop(settings, "weight_edge")
+        layout.prop(settings, "preserve_area")
+        layout.prop(settings, "iterations")
+        layout.prop(settings, "show_overlay")
 
 
-classes = (SHAPEDEFORM_PT_panel,)
+classes = (SHAPEDEFORM_UL_handles, SHAPEDEFORM_PT_panel)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

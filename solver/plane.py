@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Plane", "fit_plane", "DEFAULT_FLATNESS"]
+__all__ = ["Plane", "fit_plane", "transform_points", "DEFAULT_FLATNESS"]
 
 # A shape is flat when no point is further than this fraction of its size from the plane:
 # float32 coordinates of a rotated plane are off by about 1e-7 of the size, modelling slips
@@ -134,3 +134,9 @@ def fit_plane(points, flatness=DEFAULT_FLATNESS):
     u /= np.linalg.norm(u)
     v = np.cross(normal, u)
     return Plane(origin, np.stack([u, v, normal]))
+
+
+def transform_points(matrix, points):
+    """Apply a 4x4 affine ``matrix`` to 3D ``points`` (p, 3); returns (p, 3) float64."""
+    matrix = np.asarray(matrix, dtype=np.float64)
+    return np.asarray(points, dtype=np.float64) @ matrix[:3, :3].T + matrix[:3, 3]

@@ -57,3 +57,11 @@ def test_not_planar_says_how_far():
 def test_degenerate_points_are_refused(points, message):
     with pytest.raises(ValueError, match=message):
         fit_plane(points)
+
+
+def test_transform_points():
+    from solver.plane import transform_points
+    matrix = np.eye(4)
+    matrix[:3, 3] = [1, 2, 3]
+    matrix[0, 0] = 2.0
+    np.testing.assert_allclose(transform_points(matrix, [[1, 1, 1.0]]), [[3, 3, 4]])

@@ -1,0 +1,75 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Viewport overlay: the graph's edges and each handle's region, drawn with the gpu module.
+
+:func:`drawing_data` computes what to draw and is testable headless; :func:`draw` only hands it
+to the GPU, which has no context without a window.
+"""
+
+import bpy
+import numpy as np
+
+from ..solver.plane import transform_points
+from . import rig as rigs
+from .sources import RigError
+
+EDGE_COLOR = (0.2, 0.8, 1.0, 0.6)
+REGION_COLOR = (1.0, 0.5, 0.1, 1.0)
+
+_handle = None
+
+
+def drawing_data(obj):
+    """World-space geometry of ``obj``'s rig overlay, or None when there is nothing to draw.
+
+    Returns
+    -------
+    dict or None
+        ``edges``: (2k, 3) float32 line endpoints of the graph at its current pose;
+        ``regions``: (m, 3) float32 graph points owned by handles.
+    """
+    if obj is None or not obj.shapedeform.is_bound or not obj.shapedeform.show_overlay:
+        return None
+    try:
+        rig = rigs.get(obj)
+    except RigError:
+        return None
+    world = np.array(obj.matrix_world, dtype=np.float64)
+    points = transform_points(world, rig.plane.to_3d(rig.posed))
+    return {"edges": points[rig.graph.edges.ravel()].astype(np.float32),
+            "regions": points[rig.indices].astype(np.float32)}
+
+
+def draw():
+    """POST_VIEW callback of the 3D viewport."""
+    import gpu
+    from gpu_extras.batch import batch_for_shader
+
+    obj = bpy.context.active_object
+    if obj is not None and obj.shapedeform.rig is not None:
+        obj = obj.shapedeform.rig
+    data = drawing_data(obj)
+    if data is None:
+        return
+    shader = gpu.shader.from_builtin("UNIFORM_COLOR")
+    gpu.state.blend_set("ALPHA")
+    shader.uniform_float("color", EDGE_COLOR)
+    batch_for_shader(shader, "LINES", {"pos": data["edges"]}).draw(shader)
+    gpu.state.point_size_set(6.0)
+    shader.uniform_float("color", REGION_COLOR)
+    batch_for_shader(shader, "POINTS", {"pos": data["regions"]}).draw(shader)
+    gpu.state.blend_set("NONE")
+
+
+classes = ()
+
+
+def register():
+    global _handle
+    _handle = bpy.types.SpaceView3D.draw_handler_add(draw, (), "WINDOW", "POST_VIEW")
+
+
+def unregister():
+    global _handle
+    if _handle is not None:
+        bpy.types.SpaceView3D.draw_handler_remove(_handle, "WINDOW")
+        _handle = None
