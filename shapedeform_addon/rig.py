@@ -51,7 +51,7 @@ class Rig:
         self.handle_objects = []
         indices, offsets, owners = [], [], []
         for item in settings.handles:
-            if item.object is None or "indices" not in item:
+            if not _present(item.object) or "indices" not in item:
                 continue  # the animator deleted the Empty: that handle is gone
             owned = np.asarray(item["indices"], dtype=np.int64)
             indices.append(owned)
@@ -93,10 +93,19 @@ class Rig:
         return self.plane.to_3d(flat, self.heights).astype(np.float32)
 
 
+def _present(handle):
+    """A handle Empty that still exists in a scene.
+
+    Deleting an object in the viewport only unlinks it: the handle's pointer keeps it alive
+    as an orphan, so "deleted by hand" means "in no scene".
+    """
+    return handle is not None and len(handle.users_scene) > 0
+
+
 def signature(obj):
     """What the deformer depends on besides stored data: handles and settings."""
     s = obj.shapedeform
-    return (tuple(item.object.name if item.object else None for item in s.handles),
+    return (tuple(item.object.name if _present(item.object) else None for item in s.handles),
             s.weight_laplacian, s.weight_mvc, s.weight_edge, s.preserve_area)
 
 
