@@ -30,6 +30,8 @@ def _pose(objects, depsgraph):
         for obj in objects:
             if obj.mode == "EDIT":
                 continue  # Edit Mode owns the mesh; writing now would be overwritten
+            if "baked" in obj.shapedeform:
+                continue  # its bake plays (see bake.py); posing would overwrite a baked drawing
             message = rig.pose_safely(obj, depsgraph)
             if message:
                 _report(message)
