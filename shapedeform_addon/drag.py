@@ -111,6 +111,8 @@ def begin(context, obj, ray, pin=False):
     """
     if obj is None or not obj.shapedeform.is_bound:
         raise RigError("Select a bound object or one of its handles to drag")
+    if "baked" in obj.shapedeform:
+        raise RigError(f"'{obj.name}' plays its bake: clear the bake (Clear Bake) to pose it live")
     plane = _plane(obj)
     hit = ray_plane(*ray, *plane)
     if hit is None:
@@ -126,7 +128,9 @@ def begin(context, obj, ray, pin=False):
         handle = handles.add(obj, tuple(shape[index]))
         context.view_layer.update()
         return DragState(obj, handle, True, plane, hit, missing)
-    candidates = [item.object for item in settings.handles if item.object is not None]
+    # A handle deleted in the viewport lingers as an orphan (in no scene): never grab it.
+    candidates = [item.object for item in settings.handles
+                  if item.object is not None and len(item.object.users_scene) > 0]
     if not candidates:
         raise RigError(f"'{obj.name}' has no handles: add one, or Ctrl+click to pin the shape")
     centres = np.array([_matrix(h.matrix_world)[:3, 3] for h in candidates]).reshape(-1, 3)

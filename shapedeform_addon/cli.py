@@ -1,0 +1,143 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The command line: ``blender -b shot.blend -c shapedeform bake --frames 1-250``.
+
+Registered with ``bpy.utils.register_cli_command``, so a render farm (or any job queue that
+can run ``blender -b``) bakes a shot before rendering it. :func:`main` is the command itself
+and can be called directly, e.g. ``main(["bake", "--frames", "1-250"])``.
+"""
+
+import argparse
+import os
+import re
+import sys
+
+import bpy
+
+from . import bake, rig
+from .sources import RigError
+
+COMMAND = "shapedeform"
+
+_handle = None
+
+
+class _UsageError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse without ``sys.exit``: bad arguments become a message and a return code."""
+
+    def error(self, message):
+        raise _UsageError(f"{self.prog}: error: {message}")
+
+    def exit(self, status=0, message=None):
+        if message:
+            print(message, file=sys.stderr if status else sys.stdout, end="")
+        raise SystemExit(status)
+
+
+def frame_range(text):
+    """``"1-250"`` (or ``"12"``, or ``"-10--1"`` for negative frames) as (start, end)."""
+    match = re.fullmatch(r"\s*(-?\d+)\s*(?:-\s*(-?\d+)\s*)?", text)
+    if match is None:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a frame range like 1-250")
+    start = int(match.group(1))
+    end = int(match.group(2)) if match.group(2) is not None else start
+    if end < start:
+        raise argparse.ArgumentTypeError(f"'{text}': the last frame comes before the first")
+    return start, end
+
+
+def parser():
+    top = _Parser(prog=f"blender -b FILE.blend -c {COMMAND}",
+                  description="Shape Deform commands for batch work and render farms.")
+    commands = top.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    commands.required = True
+    sub = commands.add_parser("bake", help="bake rigs into keyframes and save the file",
+                              description="Bake every rig of the scene (or the named ones) into "
+                                          "keyframes, then save the file (or a copy with --output).")
+    sub.add_argument("--frames", type=frame_range, metavar="START-END",
+                     help="frames to bake, e.g. 1-250 (default: the scene's frame range)")
+    sub.add_argument("--step", type=int, default=1, help="bake every n-th frame (default 1)")
+    sub.add_argument("--objects", nargs="+", metavar="NAME", help="only these objects (default: every rig)")
+    sub.add_argument("--scene", metavar="NAME", help="scene to bake (default: the file's active scene)")
+    sub.add_argument("--output", metavar="FILE.blend", help="save here instead of over the opened file")
+    return top
+
+
+def _bake(args):
+    scene = bpy.data.scenes.get(args.scene) if args.scene else bpy.context.scene
+    if scene is None:
+        raise _UsageError(f"no scene named '{args.scene}' in {bpy.data.filepath or 'the file'}")
+    if args.step < 1:
+        raise _UsageError(f"--step must be 1 or more, got {args.step}")
+    if args.output is None and not bpy.data.filepath:
+        raise _UsageError("no .blend file is open: give it before -c (blender -b shot.blend -c ...) "
+                          "or pass --output")
+    if args.output is not None:
+        folder = os.path.dirname(os.path.abspath(args.output))
+        if not os.path.isdir(folder):
+            raise _UsageError(f"--output: the folder {folder} does not exist")
+    if args.objects:
+        missing = [name for name in args.objects if name not in scene.objects]
+        if missing:
+            raise _UsageError(f"no object named {', '.join(map(repr, missing))} in scene '{scene.name}'")
+        objects = [scene.objects[name] for name in args.objects]
+        unbound = [o.name for o in objects if not o.shapedeform.is_bound]
+        if unbound:
+            raise _UsageError(f"not rigged with Shape Deform: {', '.join(map(repr, unbound))}")
+    else:
+        objects = [o for o in rig.bound_objects(scene) if any(h.object for h in o.shapedeform.handles)]
+        if not objects:
+            raise _UsageError(f"scene '{scene.name}' has no rigs with handles to bake")
+    start, end = args.frames or (scene.frame_start, scene.frame_end)
+    names = ", ".join(o.name for o in objects)
+    print(f"{COMMAND}: baking frames {start}-{end} (step {args.step}) of {names}", flush=True)
+
+    def progress(done, total):
+        print(f"{COMMAND}: frame {done}/{total}", flush=True)
+
+    with bpy.context.temp_override(scene=scene):
+        bake.bake_objects(objects, start, end, args.step, scene=scene, progress=progress)
+    target = os.path.abspath(args.output) if args.output else bpy.data.filepath
+    bpy.ops.wm.save_as_mainfile(filepath=target, copy=args.output is not None)
+    print(f"{COMMAND}: saved {target}", flush=True)
+
+
+def main(argv):
+    """Run a command line; returns the process exit code (0 when it worked).
+
+    Parameters
+    ----------
+    argv : list of str
+        The arguments after ``-c shapedeform``.
+    """
+    try:
+        args = parser().parse_args(list(argv))
+        if args.command == "bake":
+            _bake(args)
+    except SystemExit as done:  # --help
+        return int(done.code or 0)
+    except _UsageError as err:
+        print(str(err), file=sys.stderr)
+        return 2
+    except (RigError, ValueError, RuntimeError) as err:
+        print(f"{COMMAND}: failed, nothing was saved: {err}", file=sys.stderr)
+        return 1
+    return 0
+
+
+classes = ()
+
+
+def register():
+    global _handle
+    _handle = bpy.utils.register_cli_command(COMMAND, main)
+
+
+def unregister():
+    global _handle
+    if _handle is not None:
+        bpy.utils.unregister_cli_command(_handle)
+        _handle = None

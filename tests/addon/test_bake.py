@@ -1,0 +1,214 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Baking: every baked frame plays the live pose with the extension disabled; rebake replaces;
+the command line bakes a saved file; animated poses do not depend on the frame shown before."""
+
+import addon_utils
+import bpy
+import numpy as np
+import pytest
+
+from mathutils import Vector
+
+import rig_checks as checks
+from conftest import ADDON_MODULE
+from test_rig_curve import curve_points, text_curve
+from test_rig_grease_pencil import drawing_points
+from test_rig_mesh import grid
+
+FRAMES = range(1, 7)
+
+
+def animate(handle, offset):
+    """Key ``handle`` at frame 1 where it is and at frame 6 moved by ``offset`` (a turn too)."""
+    handle.keyframe_insert("location", frame=1)
+    handle.keyframe_insert("rotation_euler", frame=1)
+    handle.location += Vector(offset)
+    handle.rotation_euler.z += 0.3
+    handle.keyframe_insert("location", frame=6)
+    handle.keyframe_insert("rotation_euler", frame=6)
+
+
+def rig(obj, first, second, offset):
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, first))
+    animate(checks.add_handle(obj, checks.world(obj, second)), offset)
+
+
+def live(read):
+    scene = bpy.context.scene
+    result = {}
+    for frame in FRAMES:
+        scene.frame_set(frame)
+        result[frame] = read().copy()
+    return result
+
+
+def assert_plays_without_extension(read, expected):
+    """Disable the extension, then every baked frame must show what the live rig showed."""
+    addon_utils.disable(ADDON_MODULE, default_set=True)
+    try:
+        scene = bpy.context.scene
+        for frame in reversed(FRAMES):  # out of order, as a farm would
+            scene.frame_set(frame)
+            np.testing.assert_allclose(read(), expected[frame], atol=1e-5, err_msg=f"frame {frame}")
+    finally:
+        addon_utils.enable(ADDON_MODULE, default_set=True)
+
+
+def test_mesh_bake_plays_without_the_extension_and_rebake_replaces(addon):
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    expected = live(lambda: checks.evaluated_mesh_points(obj))
+    assert np.abs(expected[6] - expected[1]).max() > 0.3
+
+    bake = addon.shapedeform_addon.bake
+    assert bake.bake_objects([obj], 1, 6) == [obj]
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}  # again: replaces
+    names = [block.name for block in obj.data.shape_keys.key_blocks]
+    assert names == ["Basis"] + [bake.key_name(f) for f in FRAMES]
+    animation = obj.data.shape_keys.animation_data
+    from bpy_extras import anim_utils
+    bag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+    assert len(bag.fcurves) == len(FRAMES)
+    assert [tuple(k.co) for k in bag.fcurves[2].keyframe_points] == [(2.0, 0.0), (3.0, 1.0), (4.0, 0.0)]
+    assert len(bpy.data.actions) == 2  # the handle's and the bake's
+    assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
+
+    # A baked object plays its bake; clearing it gives the live rig back.
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+    assert obj.data.shape_keys is None and "baked" not in obj.shapedeform
+    bpy.context.scene.frame_set(4)
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), expected[4], atol=1e-5)
+
+
+def test_curve_bake_keys_points_and_handles(addon):
+    obj = text_curve("I")
+    rest = np.concatenate([p[:, :3] for p in curve_points(obj)])
+    low, high = rest[np.argmin(rest[:, 1])], rest[np.argmax(rest[:, 1])]
+    rig(obj, low, high, (0.4, 0.0, 0.0))
+    expected = live(lambda: np.concatenate(curve_points(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()))))
+    assert np.abs(expected[6] - expected[1]).max() > 0.2
+    bake = addon.shapedeform_addon.bake
+    bake.bake_objects([obj], 1, 6)
+    bake.bake_objects([obj], 1, 6)
+    animation = obj.data.animation_data
+    from bpy_extras import anim_utils
+    bag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+    points = sum(len(s.bezier_points) * 3 + len(s.points) for s in obj.data.splines)
+    assert len(bag.fcurves) == points * 3  # x, y, z of every point and handle, once
+    assert {len(c.keyframe_points) for c in bag.fcurves} == {len(FRAMES)}
+    assert_plays_without_extension(
+        lambda: np.concatenate(curve_points(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()))), expected)
+
+
+def test_grease_pencil_bake_makes_a_drawing_per_frame(addon):
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    rest = drawing_points(obj, evaluated=False)
+    rig(obj, rest[np.argmin(rest[:, 2])], rest[np.argmax(rest[:, 2])], (0.3, 0.0, 0.0))
+    expected = live(lambda: drawing_points(obj))
+    assert np.abs(expected[6] - expected[1]).max() > 0.2
+    bake = addon.shapedeform_addon.bake
+    bake.bake_objects([obj], 1, 6)
+    bake.bake_objects([obj], 1, 6)
+    for layer in obj.data.layers:
+        assert sorted(f.frame_number for f in layer.frames) == list(FRAMES)
+    assert_plays_without_extension(lambda: drawing_points(obj), expected)
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+    for layer in obj.data.layers:
+        assert [f.frame_number for f in layer.frames] == [1]
+
+
+def test_bad_bake_requests_change_nothing(addon):
+    obj = grid()
+    bpy.ops.shapedeform.bind()
+    bake = addon.shapedeform_addon.bake
+    RigError = addon.shapedeform_addon.sources.RigError
+    with pytest.raises(RigError, match="no handles"):
+        bake.bake_objects([obj], 1, 5)
+    checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    with pytest.raises(ValueError, match="comes before"):
+        bake.bake_objects([obj], 5, 1)
+    with pytest.raises(ValueError, match="step"):
+        bake.bake_objects([obj], 1, 5, step=0)
+    # Cancelled half way: nothing written, the scene back on its frame.
+    bpy.context.scene.frame_set(3)
+    assert bake.bake_objects([obj], 1, 5, cancelled=lambda: True) is None
+    assert obj.data.shape_keys is None and "baked" not in obj.shapedeform
+    assert bpy.context.scene.frame_current == 3
+
+
+def test_pose_at_a_frame_does_not_depend_on_the_frame_before(addon):
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.6, 0.0))
+    scene = bpy.context.scene
+    for frame in range(1, 5):  # played from frame 1
+        scene.frame_set(frame)
+    played = checks.evaluated_mesh_points(obj).copy()
+    scene.frame_set(6)
+    scene.frame_set(4)  # jumped to, from later
+    jumped_back = checks.evaluated_mesh_points(obj).copy()
+    rig_module = addon.shapedeform_addon.rig
+    rig_module.forget()  # as a fresh render-farm process would start
+    scene.frame_set(2)
+    scene.frame_set(4)
+    fresh = checks.evaluated_mesh_points(obj)
+    assert np.abs(played - checks.mesh_points(obj)).max() == 0
+    np.testing.assert_allclose(jumped_back, played, atol=1e-6)
+    np.testing.assert_allclose(fresh, played, atol=1e-6)
+
+
+def test_deleting_a_handle_by_hand_drops_it_quietly(addon):
+    obj = grid()
+    bpy.ops.shapedeform.bind()
+    left = checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    right = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    right.location.y += 0.3
+    bpy.context.view_layer.update()
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    left.select_set(True)
+    bpy.context.view_layer.objects.active = left
+    assert bpy.ops.object.delete() == {"FINISHED"}
+    right.location.y += 0.1
+    bpy.context.view_layer.update()
+    rig_module = addon.shapedeform_addon.rig
+    assert rig_module.get(obj).handle_objects == [right]
+    assert obj.shapedeform.status == ""
+    # With one handle left the shape moves rigidly with it.
+    posed = checks.evaluated_mesh_points(obj)
+    rest = checks.mesh_points(obj)
+    assert np.all(np.isfinite(posed))
+    bpy.context.scene.frame_set(3)
+    assert obj.shapedeform.status == ""
+
+
+def test_command_line_bakes_a_saved_file(addon, tmp_path, capsys):
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    path = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    main = addon.shapedeform_addon.cli.main
+
+    for bad, message in [([], "required"), (["bake", "--frames", "ten"], "not a frame range"),
+                         (["bake", "--frames", "9-2"], "comes before"),
+                         (["bake", "--objects", "Nobody"], "no object named 'Nobody'"),
+                         (["bake", "--output", str(tmp_path / "missing" / "x.blend")], "does not exist"),
+                         (["frobnicate"], "invalid choice")]:
+        assert main(bad) == 2, bad
+        assert message in capsys.readouterr().err
+    assert obj.data.shape_keys is None  # nothing was baked by the refusals
+
+    out = str(tmp_path / "baked.blend")
+    assert main(["bake", "--frames", "1-6", "--objects", "Grid", "--output", out]) == 0
+    printed = capsys.readouterr().out
+    assert "frame 6/6" in printed and "saved" in printed
+    bpy.ops.wm.open_mainfile(filepath=out)
+    keys = bpy.data.objects["Grid"].data.shape_keys
+    assert [b.name for b in keys.key_blocks][1:] == [f"sd_bake_{f:04d}" for f in FRAMES]
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert bpy.data.objects["Grid"].data.shape_keys is None  # --output left the shot as it was
+    assert main(["bake", "--frames", "2-3"]) == 0  # every rig, saved in place
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert len(bpy.data.objects["Grid"].data.shape_keys.key_blocks) == 3
