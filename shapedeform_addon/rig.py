@@ -205,6 +205,10 @@ def bind(obj):
     _store_graph(settings, prepared.plane, prepared.graph, prepared.own_graph)
     settings.kind = kind
     settings.is_bound = True
+    for scene in obj.users_scene:
+        # Frame handlers pose rigs while a render reads the scene from another thread: lock the
+        # interface during renders (saved in the file, so farm and F12 renders are safe).
+        scene.render.use_lock_interface = True
     settings.status = ""
     forget(obj)
     return get(obj)
