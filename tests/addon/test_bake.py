@@ -212,3 +212,11 @@ def test_command_line_bakes_a_saved_file(addon, tmp_path, capsys):
     assert main(["bake", "--frames", "2-3"]) == 0  # every rig, saved in place
     bpy.ops.wm.open_mainfile(filepath=path)
     assert len(bpy.data.objects["Grid"].data.shape_keys.key_blocks) == 3
+
+
+def test_binding_locks_the_interface_during_renders(addon):
+    scene = bpy.context.scene
+    scene.render.use_lock_interface = False
+    grid()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert scene.render.use_lock_interface
