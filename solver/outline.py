@@ -8,7 +8,8 @@ import numpy as np
 
 from .shapes import shape_geometry
 
-__all__ = ["boundary_loops", "sample_bezier", "spacing_for_count", "smallest_angles"]
+__all__ = ["boundary_loops", "sample_bezier", "spacing_for_count", "smallest_angles", "simplify_rings",
+           "outline_graph"]
 
 
 def boundary_loops(triangles):
@@ -133,3 +134,38 @@ def smallest_angles(points, triangles):
     angles = np.arccos(np.clip(cosine, -1.0, 1.0))
     angles[(lengths == 0).any(axis=1)] = 0.0
     return angles.min(axis=1)
+
+
+def simplify_rings(rings, tolerance):
+    """Rings with points that add less than ``tolerance`` of detail removed (topology kept).
+
+    A dense mesh's outline or a finely swept silhouette has far more boundary points than the
+    graph needs; the graph's own boundary is then subdivided to its spacing again.
+
+    Parameters
+    ----------
+    rings : sequence of (k, 2) array_like
+    tolerance : float
+
+    Returns
+    -------
+    list of (k', 2) float64 ndarray
+    """
+    import shapely
+
+    from .shapes import geometry_rings, shape_geometry
+
+    geometry = shape_geometry(rings)
+    simplified = shapely.simplify(geometry, tolerance, preserve_topology=True)
+    if simplified.is_empty or not simplified.is_valid:
+        simplified = geometry
+    return [ring for island in geometry_rings(simplified) for ring in island]
+
+
+def outline_graph(rings, count):
+    """The paper's graph for ``rings`` with about ``count`` interior points and a boundary
+    resampled to the same spacing (see :func:`simplify_rings`)."""
+    from .graph import build_graph
+
+    spacing = spacing_for_count(rings, count)
+    return build_graph(simplify_rings(rings, 0.02 * spacing), spacing)

@@ -12,7 +12,7 @@ spline its points. The rest points are kept as the ID property ``sd_rest`` of th
 import numpy as np
 
 from ... import solver
-from ...solver.outline import sample_bezier, spacing_for_count
+from ...solver.outline import outline_graph, sample_bezier
 from ...solver.silhouette import stroke_silhouette
 from . import Prepared, RigError
 
@@ -74,7 +74,7 @@ def prepare(obj, settings):
             radius = max(curve.bevel_depth, SWEEP_FRACTION * size)
             offsets = np.concatenate([[0], np.cumsum([len(s) for s in strokes])])
             rings = stroke_silhouette(np.concatenate(strokes), offsets, np.full(offsets[-1], radius))
-        graph = solver.build_graph(rings, spacing_for_count(rings, settings.density))
+        graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
 

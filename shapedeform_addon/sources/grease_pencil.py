@@ -10,7 +10,7 @@ remembered on ``obj.shapedeform``.
 import numpy as np
 
 from ... import solver
-from ...solver.outline import spacing_for_count
+from ...solver.outline import outline_graph
 from ...solver.silhouette import stroke_silhouette
 from . import Prepared, RigError
 from .mesh import REST_ATTRIBUTE, read_vectors
@@ -83,7 +83,7 @@ def prepare(obj, settings):
         size = float(np.linalg.norm(np.ptp(flat, axis=0)))
         rings = stroke_silhouette(flat, np.concatenate(offsets), np.concatenate(radii), np.concatenate(cyclic),
                                   min_radius=MIN_RADIUS_FRACTION * size)
-        graph = solver.build_graph(rings, spacing_for_count(rings, settings.density))
+        graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from ... import solver
 from ...solver.handles import apply_affine
-from ...solver.outline import spacing_for_count
+from ...solver.outline import outline_graph
 from ...solver.silhouette import fit_affine, image_cutout
 from . import Prepared, RigError, mesh as mesh_source
 
@@ -59,7 +59,7 @@ def prepare(obj, settings):
         to_plane = fit_affine(uv.reshape(-1, 2), plane.to_2d(corners[loop_vertices]))
         rings = [apply_affine(to_plane, ring / (width, height))
                  for ring in image_cutout(pixels.reshape(height, width, 4))]
-        graph = solver.build_graph(rings, spacing_for_count(rings, settings.density))
+        graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     vertices = plane.to_3d(graph.points).astype(np.float32)

@@ -8,7 +8,7 @@ unbinding gives back the mesh bit for bit and the rig survives save and reload.
 import numpy as np
 
 from ... import solver
-from ...solver.outline import boundary_loops, smallest_angles, spacing_for_count
+from ...solver.outline import boundary_loops, outline_graph, smallest_angles
 from . import Prepared, RigError
 
 REST_ATTRIBUTE = "sd_rest"
@@ -72,7 +72,7 @@ def prepare(obj, settings):
             graph = solver.Graph(flat, edges(mesh), loops, tris)
         else:
             rings = [flat[loop] for loop in loops]
-            graph = solver.build_graph(rings, spacing_for_count(rings, settings.density))
+            graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     return Prepared(rest, plane, graph, mode == "OWN", commit=lambda o: store_rest(o.data, rest))

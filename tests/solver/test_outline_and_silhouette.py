@@ -101,3 +101,13 @@ def test_smallest_angles():
     points = np.array([[0, 0], [1, 0], [0.5, np.sqrt(3) / 2], [2, 0], [1, 1e-3], [0, 0]])
     angles = smallest_angles(points, [[0, 1, 2], [0, 3, 4], [0, 1, 5]])
     np.testing.assert_allclose(angles, [np.pi / 3, np.arctan(1e-3), 0.0], atol=1e-9)
+
+
+def test_outline_graph_of_a_dense_outline_has_about_count_points():
+    from solver.outline import outline_graph, simplify_rings
+    side = np.linspace(0, 1, 400, endpoint=False)
+    square = np.concatenate([np.stack([side, 0 * side], 1), np.stack([1 + 0 * side, side], 1),
+                             np.stack([1 - side, 1 + 0 * side], 1), np.stack([0 * side, 1 - side], 1)])
+    assert len(simplify_rings([square], 1e-3)[0]) == 4
+    graph = outline_graph([square], 100)
+    assert 100 < graph.n < 250
