@@ -170,6 +170,11 @@ class Deformer:
 
         if len(self.free):
             self._free_transpose = self.energy.matrix.tocsc()[:, self.free].T.tocsr()
+            weight = np.asarray(abs(self._free_transpose).sum(axis=1)).ravel()
+            if np.any(weight == 0.0):
+                raise ValueError(
+                    f"with these weights {int((weight == 0).sum())} points are in no energy term and "
+                    "nothing decides where they go; give 'mvc' or 'edge' a positive weight")
             self._coarse = None
             if newton or (newton is None and graph.n <= NEWTON_MAX_POINTS):
                 self._hessian = Hessian(self.energy, self.free)
@@ -265,6 +270,13 @@ class Deformer:
         positions = self._start(targets, initial)
         if len(self.free) == 0:
             return Solution(positions, 0, [], True)
+        try:
+            return self._iterate(positions, max_iterations, tolerance)
+        except RuntimeError as error:  # qdldl: a matrix that is not positive definite
+            raise ValueError(f"the deformation system is singular ({error}): the weights or handles "
+                             "leave part of the shape free to move without changing the energy") from None
+
+    def _iterate(self, positions, max_iterations, tolerance):
         step_limit = tolerance * self.graph.size
         area = self._area
         direction = None

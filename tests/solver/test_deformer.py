@@ -238,3 +238,12 @@ def test_paper_matrix_mode_never_refactorises(horse_graph, horse_drag):
         pose = deformer.solve(rest + (targets - rest) * t)
         assert pose.factorizations == 0 and deformer._hessian._factor is factor
         assert np.array_equal(pose.positions[handles], rest + (targets - rest) * t)
+
+
+def test_weights_that_leave_points_free_are_refused(horse_graph, horse_drag):
+    handles, targets, _ = horse_drag
+    with pytest.raises(ValueError, match="in no energy term"):
+        solver.Deformer(horse_graph, handles, weights={"mvc": 0.0, "edge": 0.0})
+    # Tiny local-area weights are fine (the paper's Figure 3, right, without local area).
+    pose = solver.Deformer(horse_graph, handles, weights={"mvc": 1e-3, "edge": 1e-3}).solve(targets)
+    assert np.all(np.isfinite(pose.positions))
