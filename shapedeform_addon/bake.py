@@ -78,7 +78,9 @@ def _capture_grease_pencil(obj, posed):
     return posed.points(posed.posed)
 
 
-_CAPTURE = {"MESH": _capture_mesh, "CURVE": _capture_curve, "GREASEPENCIL": _capture_grease_pencil}
+# An image plane's rig is its cut-out mesh: it bakes to shape keys like any mesh.
+_CAPTURE = {"MESH": _capture_mesh, "IMAGE": _capture_mesh, "CURVE": _capture_curve,
+            "GREASEPENCIL": _capture_grease_pencil}
 
 
 # -- writing keys -----------------------------------------------------------------------------
@@ -225,8 +227,8 @@ def _write_grease_pencil(obj, frames, captured, step):
     obj.data.update_tag()
 
 
-_WRITE = {"MESH": (_clear_mesh, _write_mesh), "CURVE": (_clear_curve, _write_curve),
-          "GREASEPENCIL": (_clear_grease_pencil, _write_grease_pencil)}
+_WRITE = {"MESH": (_clear_mesh, _write_mesh), "IMAGE": (_clear_mesh, _write_mesh),
+          "CURVE": (_clear_curve, _write_curve), "GREASEPENCIL": (_clear_grease_pencil, _write_grease_pencil)}
 
 
 def is_baked(obj):

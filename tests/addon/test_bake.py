@@ -220,3 +220,21 @@ def test_binding_locks_the_interface_during_renders(addon):
     grid()
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert scene.render.use_lock_interface
+
+
+def test_image_plane_bake_plays_without_the_extension(addon, tmp_path):
+    """The cut-out of an image plane bakes to shape keys like any mesh."""
+    from test_rig_image_plane import import_picture
+
+    obj, _ = import_picture(tmp_path)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    points = checks.evaluated_mesh_points(obj)
+    low, high = points.min(axis=0), points.max(axis=0)
+    checks.add_handle(obj, low + 0.1 * (high - low))
+    animate(checks.add_handle(obj, high - 0.1 * (high - low)), (0.0, 0.3, 0.0))
+    expected = live(lambda: checks.evaluated_mesh_points(obj))
+    assert np.abs(expected[6] - expected[1]).max() > 0.1
+    assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 6) == [obj]
+    assert len(obj.data.shape_keys.key_blocks) == 1 + len(FRAMES)
+    assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
