@@ -3,6 +3,8 @@
 
 import bpy
 
+from .bake import is_baked
+
 
 def rigged_object(context):
     """The object the panel shows: the active object, or the rig of an active handle."""
@@ -59,6 +61,15 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
         layout.prop(settings, "preserve_area")
         layout.prop(settings, "iterations")
         layout.prop(settings, "show_overlay")
+        col = layout.column(align=True)
+        col.label(text="Pose and Animate")
+        # The drag needs the viewport's own region, so it runs from its key, not a button here.
+        col.label(text="Drag handles: Ctrl Shift D in the viewport", icon="MOUSE_LMB_DRAG")
+        if is_baked(obj):
+            col.label(text="Baked: the keyframes play, the rig waits", icon="KEYFRAME_HLT")
+            col.operator("shapedeform.clear_bake", icon="TRASH")
+        else:
+            col.operator("shapedeform.bake", icon="REC")
 
 
 classes = (SHAPEDEFORM_UL_handles, SHAPEDEFORM_PT_panel)

@@ -1,6 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The sidebar panel is registered in its tab and the overlay's drawing data is right."""
 
+from types import SimpleNamespace
+
 import bpy
 import numpy as np
 
@@ -30,3 +32,51 @@ def test_overlay_draws_the_posed_graph_and_regions(addon):
     world = checks.evaluated_mesh_points(obj) + np.array(obj.location)
     # The mesh is its own graph here: the overlay's points are the evaluated vertices.
     assert np.abs(data["edges"] - world[rig.graph.edges.ravel()]).max() < 1e-5
+
+
+class RecordingLayout:
+    """Stands in for a UI layout headless: records the operators and properties drawn."""
+
+    def __init__(self, record=None):
+        self.record = [] if record is None else record
+
+    def operator(self, idname, **_):
+        self.record.append(idname)
+
+    def prop(self, _data, name, **_):
+        self.record.append(name)
+
+    def label(self, **_):
+        pass
+
+    def template_list(self, *args, **_):
+        pass
+
+    def column(self, **_):
+        return RecordingLayout(self.record)
+
+    row = column
+
+
+def drawn(context):
+    panel = SimpleNamespace(layout=RecordingLayout())
+    bpy.types.SHAPEDEFORM_PT_panel.draw(panel, context)
+    return panel.layout.record
+
+
+def test_panel_offers_bind_then_handles_weights_and_bake_then_clear_bake(addon):
+    obj = grid()
+    bpy.context.view_layer.objects.active = obj
+    assert drawn(bpy.context)[-1] == "shapedeform.bind"
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    bpy.context.view_layer.objects.active = obj
+    items = drawn(bpy.context)
+    for expected in ("shapedeform.unbind", "shapedeform.add_handle", "weight_mvc", "preserve_area",
+                     "shapedeform.bake"):
+        assert expected in items
+    handle.keyframe_insert("location", frame=1)
+    assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 2) == [obj]
+    items = drawn(bpy.context)
+    assert "shapedeform.clear_bake" in items and "shapedeform.bake" not in items
