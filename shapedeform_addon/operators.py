@@ -12,14 +12,6 @@ from . import handles, rig, sources
 from .sources import RigError
 
 
-def _target(context):
-    """The rigged object the user means: the active object, or the rig of an active handle."""
-    obj = context.active_object
-    if obj is not None and obj.shapedeform.rig is not None:
-        return obj.shapedeform.rig
-    return obj
-
-
 class SHAPEDEFORM_OT_bind(bpy.types.Operator):
     """Rig the active object: find its plane, build its graph and keep its rest shape"""
 
@@ -48,7 +40,7 @@ class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
-        obj = _target(context)
+        obj = rig.rigged_object(context)
         if obj is None or not obj.shapedeform.is_bound:
             self.report({"ERROR"}, "The active object is not bound")
             return {"CANCELLED"}
@@ -69,7 +61,7 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
                                   description="World location of the handle (projected onto the shape's plane)")
 
     def execute(self, context):
-        obj = _target(context)
+        obj = rig.rigged_object(context)
         if obj is None or not obj.shapedeform.is_bound:
             self.report({"ERROR"}, "Bind the object before adding handles")
             return {"CANCELLED"}

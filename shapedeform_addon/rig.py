@@ -232,6 +232,14 @@ def unbind(obj):
     forget(obj)
 
 
+def rigged_object(context):
+    """The object the user means: the active object, or the rig of an active handle."""
+    obj = context.active_object
+    if obj is not None and obj.shapedeform.rig is not None:
+        return obj.shapedeform.rig
+    return obj
+
+
 def bound_objects(scene):
     """Bound objects of ``scene``."""
     return [o for o in scene.objects if o.shapedeform.is_bound]

@@ -4,14 +4,7 @@
 import bpy
 
 from .bake import is_baked
-
-
-def rigged_object(context):
-    """The object the panel shows: the active object, or the rig of an active handle."""
-    obj = context.active_object
-    if obj is not None and obj.shapedeform.rig is not None:
-        return obj.shapedeform.rig
-    return obj
+from .rig import rigged_object
 
 
 class SHAPEDEFORM_UL_handles(bpy.types.UIList):
