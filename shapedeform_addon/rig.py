@@ -63,7 +63,8 @@ class Rig:
         self.owners = np.concatenate(owners) if owners else np.empty(0, np.int64)
         weights = {"laplacian": settings.weight_laplacian, "mvc": settings.weight_mvc, "edge": settings.weight_edge}
         try:
-            self.deformer = solver.Deformer(self.graph, self.indices, weights, settings.preserve_area) \
+            self.deformer = solver.Deformer(self.graph, self.indices, weights, settings.preserve_area,
+                                            prevent_flips=settings.prevent_flips) \
                 if len(self.indices) else None
         except ValueError as err:
             raise RigError(f"'{obj.name}': {err}") from None
@@ -106,7 +107,7 @@ def signature(obj):
     """What the deformer depends on besides stored data: handles and settings."""
     s = obj.shapedeform
     return (tuple(item.object.name if _present(item.object) else None for item in s.handles),
-            s.weight_laplacian, s.weight_mvc, s.weight_edge, s.preserve_area)
+            s.weight_laplacian, s.weight_mvc, s.weight_edge, s.preserve_area, s.prevent_flips)
 
 
 def get(obj):

@@ -52,6 +52,7 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
         col.prop(settings, "weight_mvc")
         col.prop(settings, "weight_edge")
         layout.prop(settings, "preserve_area")
+        layout.prop(settings, "prevent_flips")
         layout.prop(settings, "iterations")
         layout.prop(settings, "show_overlay")
         col = layout.column(align=True)

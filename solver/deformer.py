@@ -140,6 +140,12 @@ class Deformer:
         again (moving handles only changes right-hand sides), L-BFGS on it from the pose of a
         coarse copy of the shape; cheaper per iteration, slower to turn free limbs. By default
         ``True`` up to ``NEWTON_MAX_POINTS`` points.
+    prevent_flips : bool
+        The paper's energy admits poses with folded (inverted) triangles in large bends (where a
+        dragged region meets the rest, typically). With this on, the line search refuses steps
+        that fold more triangles than the current pose has, so a pose that starts unfolded stays
+        unfolded and the energy still never rises; the price is a pose that may stop short of
+        the energy's minimum (the solve ends where every further step would fold).
 
     Raises
     ------
@@ -148,8 +154,10 @@ class Deformer:
         point a handle (the area would be fixed by the handles alone).
     """
 
-    def __init__(self, graph, handles, weights=None, preserve_area=False, newton=None):
+    def __init__(self, graph, handles, weights=None, preserve_area=False, newton=None,
+                 prevent_flips=False):
         self.graph = graph
+        self.prevent_flips = bool(prevent_flips)
         handles = np.asarray(handles, dtype=np.int64).ravel()
         if len(handles) and (handles.min() < 0 or handles.max() >= graph.n):
             raise ValueError(f"handle indices must be in [0, {graph.n}), got {handles.min()}..{handles.max()}")
@@ -297,6 +305,7 @@ class Deformer:
         gradient = self._free_transpose @ residual  # half the true gradient
         history = deque(maxlen=HISTORY)
         solution = Solution(positions)
+        self._folded = self._count_folded(positions) if self.prevent_flips else 0
         for _ in range(max_iterations):
             search_gradient = gradient
             if area is not None:
@@ -373,6 +382,12 @@ class Deformer:
         direction[self.free] = self._hessian.solve(self._area.jacobian(positions)[self.free])
         return direction
 
+    def _count_folded(self, positions):
+        """Triangles turned clockwise (folded over) at ``positions``."""
+        a, b, c = (positions[self.graph.triangles[:, k]] for k in range(3))
+        cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+        return int(np.count_nonzero(cross <= 0.0))
+
     def _multiplier(self, gradient, positions, direction):
         """Least-squares Lagrange multiplier of the area constraint in the metric of H."""
         jacobian = self._area.jacobian(positions)[self.free]
@@ -398,7 +413,8 @@ class Deformer:
         for _ in range(MAX_HALVINGS):
             trial = positions.copy()
             trial[self.free] += alpha * step
-            if self._area is None or self._area.restore(trial, direction):
+            if (self._area is None or self._area.restore(trial, direction)) and (
+                    not self.prevent_flips or self._count_folded(trial) <= self._folded):
                 rows_now = self.energy.matrix @ trial
                 residual = rows_now - self.energy.targets(rows_now)
                 trial_energy = float(np.einsum("ij,ij->", residual, residual))

@@ -247,3 +247,22 @@ def test_weights_that_leave_points_free_are_refused(horse_graph, horse_drag):
     # Tiny local-area weights are fine (the paper's Figure 3, right, without local area).
     pose = solver.Deformer(horse_graph, handles, weights={"mvc": 1e-3, "edge": 1e-3}).solve(targets)
     assert np.all(np.isfinite(pose.positions))
+
+
+def test_prevent_flips_keeps_a_large_turn_unfolded():
+    """Turning the top of a 'B' by 90 degrees folds triangles at the paper's minimum; with
+    prevent_flips the pose stays unfolded and the energy still falls."""
+    rings = glyph_rings("B")
+    graph = solver.build_graph(rings, spacing=np.sqrt(solver.shapes.shape_geometry(rings).area / 450))
+    low, high = graph.points.min(axis=0), graph.points.max(axis=0)
+    unit = (graph.points - low) / (high - low)
+    bottom, top = np.flatnonzero(unit[:, 1] <= 0.04), np.flatnonzero(unit[:, 1] >= 0.96)
+    pivot = low + np.array([0.05, 0.55]) * (high - low)
+    turned = (graph.points[top] - pivot) @ rotation(np.pi / 2).T + pivot
+    handles, targets = np.concatenate([bottom, top]), np.concatenate([graph.points[bottom], turned])
+    plain = solver.Deformer(graph, handles).solve(targets)
+    guarded = solver.Deformer(graph, handles, prevent_flips=True).solve(targets)
+    assert flipped(graph, plain.positions) > 0
+    assert flipped(graph, guarded.positions) == 0
+    assert np.all(np.diff(guarded.energies) <= 0.0)
+    assert np.array_equal(guarded.positions[handles], targets)
