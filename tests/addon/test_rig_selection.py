@@ -1,0 +1,51 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Adding handles at the selected points of curves and grease-pencil drawings."""
+
+import bpy
+import numpy as np
+
+import rig_checks as checks
+from test_rig_curve import text_curve
+
+
+def handle_locations(obj):
+    return np.array([item.object.matrix_world.translation for item in obj.shapedeform.handles])
+
+
+def test_add_handles_at_selected_curve_points(addon):
+    obj = text_curve("B")
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    points = obj.data.splines[0].bezier_points
+    for point in points:
+        point.select_control_point = point.select_left_handle = point.select_right_handle = False
+    chosen = (0, 3)
+    for i in chosen:
+        points[i].select_control_point = True
+    expected = [checks.world(obj, points[i].co) for i in chosen]  # Edit Mode rebuilds the splines
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    np.testing.assert_allclose(sorted(map(tuple, handle_locations(obj))), sorted(expected), atol=1e-5)
+
+
+def test_add_handles_at_selected_grease_pencil_points(addon):
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    expected = []
+    for layer in obj.data.layers:
+        drawing = layer.current_frame().drawing
+        count = len(drawing.attributes["position"].data)
+        selection = drawing.attributes.get(".selection") or drawing.attributes.new(".selection", "BOOLEAN", "POINT")
+        mask = np.zeros(count, dtype=bool)
+        if layer.name == "Lines":
+            mask[[0, count // 2]] = True
+            positions = np.empty(count * 3, np.float32)
+            drawing.attributes["position"].data.foreach_get("vector", positions)
+            expected += [checks.world(obj, p) for p in positions.reshape(-1, 3)[mask]]
+        selection.data.foreach_set("value", mask)
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert len(obj.shapedeform.handles) == 2
+    np.testing.assert_allclose(sorted(map(tuple, handle_locations(obj))), sorted(expected), atol=1e-5)
