@@ -39,7 +39,7 @@ DEFAULT_TOLERANCE = 1e-4
 # Newton steps (refactorisations) at most per solve, taken while steps are larger than
 # NEWTON_UNTIL times the shape's size; then L-BFGS reuses the last factor.
 NEWTON_STEPS = 4
-NEWTON_UNTIL = 1e-3
+NEWTON_UNTIL = 1e-2
 # Above this many points the coupled Newton matrix fills in too much to refactor: such graphs
 # iterate with the paper's constant matrix (one factorisation, back-substitutions only).
 NEWTON_MAX_POINTS = 8000
