@@ -51,7 +51,7 @@ class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
 
 
 class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
-    """Add a handle at a location, or one at each selected point"""
+    """Add a handle at a location, at the 3D cursor (Object Mode), or one at each selected point (Edit Mode)"""
 
     bl_idname = "shapedeform.add_handle"
     bl_label = "Add Handle"
@@ -71,6 +71,9 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
             bpy.ops.object.mode_set(mode="OBJECT")
         if self.properties.is_property_set("location"):
             locations = np.array([self.location], dtype=np.float64)
+        elif not was_edit:
+            # As Blender adds things in Object Mode: at the 3D cursor (projected onto the plane).
+            locations = np.array([context.scene.cursor.location], dtype=np.float64)
         else:
             local = sources.module_for(obj).selected(obj)
             if len(local) == 0:

@@ -49,3 +49,16 @@ def test_add_handles_at_selected_grease_pencil_points(addon):
     bpy.ops.object.mode_set(mode="OBJECT")
     assert len(obj.shapedeform.handles) == 2
     np.testing.assert_allclose(sorted(map(tuple, handle_locations(obj))), sorted(expected), atol=1e-5)
+
+
+def test_in_object_mode_a_handle_goes_to_the_3d_cursor(addon):
+    from test_rig_mesh import grid
+
+    obj = grid()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    bpy.context.scene.cursor.location = (0.8, -1.1, 0.7)  # above the shape: projected onto it
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    location = handle_locations(obj)[0]
+    np.testing.assert_allclose(location[:2], (0.8, -1.1), atol=1e-6)
+    assert abs(location[2] - obj.matrix_world.translation.z) < 1e-6
