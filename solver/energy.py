@@ -117,6 +117,8 @@ class Energy:
 
         rest_rows = self.matrix @ rest
         self.curve_rest = rest_rows[self.curve_rows].copy()
+        self._curve_rest_x = np.ascontiguousarray(self.curve_rest[:, 0])
+        self._curve_rest_y = np.ascontiguousarray(self.curve_rest[:, 1])
         rest_edge = rest_rows[self.length_rows]
         self.rest_length = np.linalg.norm(rest_edge, axis=1)
         self._rest_direction = rest_edge / np.maximum(self.rest_length, 1e-300)[:, None]
@@ -194,18 +196,22 @@ class Energy:
         (r, 2) float64 ndarray
         """
         targets = np.zeros_like(rows_now)
-        rest = self.curve_rest
         cos, sin, _ = self.curve_rotations(rows_now)
         cos, sin = cos[self._groups], sin[self._groups]
-        targets[self.curve_rows, 0] = cos * rest[:, 0] - sin * rest[:, 1]
-        targets[self.curve_rows, 1] = sin * rest[:, 0] + cos * rest[:, 1]
+        rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
+        curve = targets[self.curve_rows]
+        curve[:, 0] = cos * rest_x - sin * rest_y
+        curve[:, 1] = sin * rest_x + cos * rest_y
         # Nearest vector of rest length for each inner edge (eq. 4's e(v_i, v_j)).
         edge = rows_now[self.length_rows]
-        length = np.linalg.norm(edge, axis=1)
-        direction = self._rest_direction.copy()
-        ok = length > 0.0
-        direction[ok] = edge[ok] / length[ok, None]
-        targets[self.length_rows] = self.rest_length[:, None] * direction
+        length = np.hypot(edge[:, 0], edge[:, 1])
+        if length.min(initial=1.0) > 0.0:
+            targets[self.length_rows] = edge * (self.rest_length / length)[:, None]
+        else:  # a collapsed edge: any direction is optimal; keep its rest direction
+            direction = self._rest_direction.copy()
+            ok = length > 0.0
+            direction[ok] = edge[ok] / length[ok, None]
+            targets[self.length_rows] = self.rest_length[:, None] * direction
         return targets
 
     def curve_rotations(self, rows_now):
@@ -218,10 +224,11 @@ class Energy:
         norm : (m,) float64 ndarray
             ``|sum_k t_k . d_k, sum_k t_k x d_k|``; the fitted rotation maximises the first.
         """
-        rest = self.curve_rest
+        rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
         now = rows_now[self.curve_rows]
-        dots = rest[:, 0] * now[:, 0] + rest[:, 1] * now[:, 1]
-        crosses = rest[:, 0] * now[:, 1] - rest[:, 1] * now[:, 0]
+        now_x, now_y = now[:, 0], now[:, 1]
+        dots = rest_x * now_x + rest_y * now_y
+        crosses = rest_x * now_y - rest_y * now_x
         cos = np.bincount(self._groups, weights=dots, minlength=self._group_count)
         sin = np.bincount(self._groups, weights=crosses, minlength=self._group_count)
         norm = np.hypot(cos, sin)

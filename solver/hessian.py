@@ -101,7 +101,20 @@ class Hessian:
         self._base = np.bincount(locate(upper.row.astype(np.int64), upper.col.astype(np.int64)),
                                  weights=upper.data, minlength=shape.nnz)
         self._positions = locate(rows, cols)
+        self._upper = csc_matrix((self._base.copy(), shape.indices, shape.indptr), shape=shape.shape)
         self._factor = None
+
+        # Curve groups: w_k = R J t_k / sqrt(T) with t_k the rest rows and J the quarter turn, and
+        # u = A^T w on the group's three points; R is the only part that changes with the pose.
+        rest = energy.curve_rest.reshape(-1, 3, 2)  # rows: laplacian, to after, to before
+        turned = np.stack([-rest[..., 1], rest[..., 0]], axis=-1)
+        self._group_total = np.einsum("gkc,gkc->g", rest, rest)
+        scale = energy.curve_scale / np.sqrt(np.where(self._group_total > 0, self._group_total, 1.0))
+        lap, ahead, behind = turned[:, 0], turned[:, 1], turned[:, 2]
+        corners = np.stack([lap - ahead - behind, -0.5 * lap + behind, -0.5 * lap + ahead], axis=1)
+        corners *= scale[:, None, None]
+        self._group_base_x = np.ascontiguousarray(corners[..., 0])
+        self._group_base_y = np.ascontiguousarray(corners[..., 1])
 
     def matrix(self, rows_now):
         """Upper triangle of the projected Hessian (halved) at the pose with ``A V = rows_now``.
@@ -109,46 +122,43 @@ class Hessian:
         Returns
         -------
         (2 f, 2 f) scipy.sparse.csc_matrix
+            Reused by the next call: copy it to keep it.
         """
         (edge_c, edge_u), (group_c, group_u) = self._edge_terms(rows_now), self._group_terms(rows_now)
         coefficient = np.concatenate([edge_c, group_c])
         u = np.concatenate([edge_u.ravel(), group_u.ravel()])
         values = coefficient[self._owner] * u[self._first] * u[self._second]
-        data = self._base - np.bincount(self._positions, weights=values, minlength=len(self._base))
-        return csc_matrix((data, self._pattern.indices, self._pattern.indptr), shape=self._pattern.shape)
+        # The pattern never changes: overwrite the values of one matrix rather than building one.
+        np.subtract(self._base, np.bincount(self._positions, weights=values, minlength=len(self._base)),
+                    out=self._upper.data)
+        return self._upper
 
     def _edge_terms(self, rows_now):
         """Coefficients (e,) and u vectors (e, 4) laid out as [x_i, x_j, y_i, y_j]."""
         energy = self.energy
         edge = rows_now[energy.length_rows]
-        length = np.linalg.norm(edge, axis=1)
+        length = np.hypot(edge[:, 0], edge[:, 1])
         ok = length > 0
-        normal = np.zeros_like(edge)
-        normal[ok, 0] = -edge[ok, 1] / length[ok]
-        normal[ok, 1] = edge[ok, 0] / length[ok]
-        coefficient = np.where(ok, np.minimum(1.0 - CLAMP, energy.rest_length / np.where(ok, length, 1.0)), 0.0)
+        inverse = np.divide(1.0, length, out=np.zeros_like(length), where=ok)
+        coefficient = np.minimum(1.0 - CLAMP, energy.rest_length * inverse)  # 0 where collapsed
         s = energy.edge_scale
-        u = np.stack([s * normal[:, 0], -s * normal[:, 0], s * normal[:, 1], -s * normal[:, 1]], axis=1)
+        u = np.empty((len(edge), 4))
+        u[:, 0] = -s * edge[:, 1] * inverse  # the edge's unit normal, scaled
+        u[:, 2] = s * edge[:, 0] * inverse
+        u[:, 1] = -u[:, 0]
+        u[:, 3] = -u[:, 2]
         return coefficient, u
 
     def _group_terms(self, rows_now):
         """Coefficients (m,) and u vectors (m, 6) laid out as [x_here, x_before, x_after, y_...]."""
-        energy = self.energy
-        cos, sin, norm = energy.curve_rotations(rows_now)
-        rest = energy.curve_rest.reshape(-1, 3, 2)            # rows: laplacian, to after, to before
-        turned = np.stack([-rest[..., 1], rest[..., 0]], axis=-1)  # J t
-        q = np.stack([cos[:, None] * turned[..., 0] - sin[:, None] * turned[..., 1],
-                      sin[:, None] * turned[..., 0] + cos[:, None] * turned[..., 1]], axis=-1)
-        total = np.einsum("gkc,gkc->g", rest, rest)
-        ok = (norm > 0) & (total > 0)
-        coefficient = np.where(ok, np.minimum(1.0 - CLAMP, total / np.where(ok, norm, 1.0)), 0.0)
-        w = q / np.sqrt(np.where(total > 0, total, 1.0))[:, None, None]
-        s = energy.curve_scale
-        lap, ahead, behind = w[:, 0], w[:, 1], w[:, 2]
-        here = s * (lap - ahead - behind)
-        before = s * (-0.5 * lap + behind)
-        after = s * (-0.5 * lap + ahead)
-        u = np.stack([here[:, 0], before[:, 0], after[:, 0], here[:, 1], before[:, 1], after[:, 1]], axis=1)
+        cos, sin, norm = self.energy.curve_rotations(rows_now)
+        ok = (norm > 0) & (self._group_total > 0)
+        coefficient = np.where(ok, np.minimum(1.0 - CLAMP, self._group_total / np.where(ok, norm, 1.0)), 0.0)
+        # u is the fitted rotation applied to fixed combinations of the rest rows (see __init__).
+        base_x, base_y = self._group_base_x, self._group_base_y
+        u = np.empty((len(cos), 6))
+        u[:, :3] = cos[:, None] * base_x - sin[:, None] * base_y
+        u[:, 3:] = sin[:, None] * base_x + cos[:, None] * base_y
         return coefficient, u
 
     def factorize(self, rows_now):
