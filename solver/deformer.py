@@ -230,11 +230,8 @@ class Deformer:
 
     def _similar_start(self, positions):
         """The as-similar-as-possible pose for the current fixed points (one linear solve)."""
-        n = self.graph.n
         stacked = np.concatenate([positions[:, 0], positions[:, 1]])
         rhs = -(self._similarity_free_transpose @ (self._similarity_fixed @ stacked[self._stacked_fixed]))
-        # A start the solver never had a target for (a target 100 times the shape away) is
-        # still finite: qdldl solves a positive definite system.
         free = self._similarity_factor.solve(np.ascontiguousarray(rhs))
         k = len(self.free)
         positions = positions.copy()
