@@ -30,6 +30,7 @@ from scipy.spatial import cKDTree
 
 from .energy import Energy, similarity_rows
 from .hessian import Hessian, PaperMatrix
+from .triangulate import triangle_cross
 
 __all__ = ["Deformer", "Solution", "DEFAULT_MAX_ITERATIONS", "DEFAULT_TOLERANCE"]
 
@@ -383,9 +384,7 @@ class Deformer:
 
     def _count_folded(self, positions):
         """Triangles turned clockwise (folded over) at ``positions``."""
-        a, b, c = (positions[self.graph.triangles[:, k]] for k in range(3))
-        cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-        return int(np.count_nonzero(cross <= 0.0))
+        return int(np.count_nonzero(triangle_cross(positions, self.graph.triangles) <= 0.0))
 
     def _multiplier(self, gradient, positions, direction):
         """Least-squares Lagrange multiplier of the area constraint in the metric of H."""

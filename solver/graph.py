@@ -15,7 +15,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .shapes import geometry_rings, shape_geometry, signed_area
+from .shapes import geometry_rings, nesting_depth, shape_geometry, signed_area
 from .triangulate import (conforming_triangulation, edges_of_triangles, filtered_delaunay,
                           orient_counter_clockwise)
 
@@ -143,14 +143,7 @@ def _index_array(values, n, what):
 
 def _orient_loops(points, loops):
     """Outer loops counter-clockwise, holes clockwise, decided by nesting depth."""
-    polygons = [shapely.Polygon(points[loop]) for loop in loops]
-    depth = np.zeros(len(loops), dtype=np.int64)
-    if len(loops) > 1:
-        probes = [points[loop[0]] for loop in loops]
-        for i, polygon in enumerate(polygons):
-            inside = shapely.contains_xy(polygon, *np.transpose(probes))
-            inside[i] = False
-            depth += inside
+    depth = nesting_depth([shapely.Polygon(points[loop]) for loop in loops])
     oriented = []
     for loop, d in zip(loops, depth):
         counter_clockwise = signed_area(points[loop]) > 0

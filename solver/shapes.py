@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["signed_area", "clean_ring", "shape_geometry", "geometry_rings"]
+__all__ = ["signed_area", "clean_ring", "shape_geometry", "geometry_rings", "nesting_depth"]
 
 
 def signed_area(ring):
@@ -125,7 +125,7 @@ def shape_geometry(rings):
     if len(polygons) == 1:
         geometry = polygons[0]
     else:
-        depth = _nesting_depth(polygons)
+        depth = nesting_depth(polygons)
         islands = []
         for i in np.flatnonzero(depth % 2 == 0):
             holes = [polygons[j] for j in np.flatnonzero(depth == depth[i] + 1)
@@ -152,8 +152,17 @@ def _separate_pinches(geometry):
     return _polygonal_part(separated) if not separated.is_empty else geometry
 
 
-def _nesting_depth(polygons):
-    """How many other rings' polygons contain each ring's polygon."""
+def nesting_depth(polygons):
+    """How many of the other polygons contain each polygon (even: material, odd: a hole).
+
+    Parameters
+    ----------
+    polygons : sequence of shapely.Polygon
+
+    Returns
+    -------
+    (k,) int64 ndarray
+    """
     tree = shapely.STRtree(polygons)
     inner, outer = tree.query(polygons, predicate="within")
     keep = inner != outer

@@ -14,7 +14,7 @@ import shapely
 from scipy.spatial import Delaunay, cKDTree
 
 __all__ = ["conforming_triangulation", "filtered_delaunay", "edges_of_triangles",
-           "orient_counter_clockwise"]
+           "orient_counter_clockwise", "triangle_cross"]
 
 
 def edges_of_triangles(triangles):
@@ -35,12 +35,26 @@ def edges_of_triangles(triangles):
     return np.unique(edges, axis=0)
 
 
+def triangle_cross(points, triangles):
+    """Twice the signed area of each triangle: positive when counter-clockwise.
+
+    Parameters
+    ----------
+    points : (n, 2) float ndarray
+    triangles : (t, 3) int ndarray
+
+    Returns
+    -------
+    (t,) float64 ndarray
+    """
+    a, b, c = (points[triangles[:, k]] for k in range(3))
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
 def orient_counter_clockwise(points, triangles):
     """Reorder triangle corners so every triangle is counter-clockwise."""
     triangles = np.array(triangles, dtype=np.int64)
-    a, b, c = (points[triangles[:, k]] for k in range(3))
-    cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    flip = cross < 0
+    flip = triangle_cross(points, triangles) < 0
     triangles[flip] = triangles[flip][:, [0, 2, 1]]
     return triangles
 
@@ -63,9 +77,8 @@ def filtered_delaunay(points, geometry, min_area=0.0):
         Counter-clockwise triangles.
     """
     simplices = Delaunay(points).simplices
-    a, b, c = (points[simplices[:, k]] for k in range(3))
-    centroid = (a + b + c) / 3.0
-    cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    centroid = points[simplices].mean(axis=1)
+    cross = triangle_cross(points, simplices)
     inside = shapely.contains_xy(geometry, centroid[:, 0], centroid[:, 1])
     keep = inside & (0.5 * np.abs(cross) > min_area)
     return orient_counter_clockwise(points, simplices[keep])
