@@ -370,7 +370,7 @@ def scaling(large):
             method.solve()
         seconds, _ = median_time(method.solve, repeats)
         deformer = method.extra["deformer"]
-        rhs = np.ones((len(deformer.free), 2))
+        rhs = np.ones(2 * len(deformer.free))
         back, _ = median_time(lambda: deformer._hessian.solve(rhs), 20)
         arap = peers.libigl_arap(graph, groups, 10)
         arap.solve()
@@ -560,7 +560,7 @@ def write_doc(path, rows, fig3, zero_note, fig4, width, fig5, scale_rows, args, 
     w("Horse, bend drag, graphs of about 500 to "
       + ("15,000 points" if args.skip_large else "50,000 points") + ". Ours: bind = building the `Deformer`, "
       "solve = one full solve (default iterations); back-sub = one back-substitution with our "
-      "factor (`deformer._hessian.solve` on a 2-column right-hand side), the floor under any "
+      "factor (`deformer._hessian.solve` on both coordinates' right-hand sides), the floor under any "
       "iteration of the paper's method. libigl ARAP with 10 iterations and Blender Laplacian "
       "Deform with 1 for reference. \"Newton steps\" counts our refactorisations: above "
       f"{NEWTON_MAX_POINTS} points the solver by default keeps the paper's fixed factor and "

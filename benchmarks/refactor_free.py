@@ -51,7 +51,7 @@ class _Problem:
         self.free = self.deformer.free
         self.start = self.deformer.solve(targets, max_iterations=0).positions
         self.matrix = self.deformer.energy.matrix
-        self.free_transpose = self.deformer._free_transpose
+        self.free_transpose = self.matrix.tocsc()[:, self.free].T.tocsr()
         self.converged = self.deformer.solve(targets, max_iterations=500, tolerance=1e-13).positions
         self.paper = solver.Deformer(graph, handles, newton=False)
 
@@ -120,7 +120,7 @@ def newton_cg(problem, factor):
     positions = problem.start.copy()
     energy, gradient = problem.evaluate(positions)
     for iteration in range(1, MAX_ITERATIONS + 1):
-        upper = hessian.matrix(problem.matrix @ positions)
+        upper = hessian.matrix(np.ascontiguousarray((problem.matrix @ positions).T))
         full = upper + upper.T
         full.setdiag(upper.diagonal())
         step = _preconditioned_cg(full, -gradient, factor)
@@ -176,8 +176,9 @@ class _CountingFactor:
         self.count = 0
 
     def solve(self, rhs):
+        """``rhs`` and the result are (f, 2)."""
         self.count += 1
-        return self.inner.solve(rhs)
+        return self.inner.solve(rhs.T.ravel()).reshape(2, -1).T
 
 
 def cases():

@@ -58,7 +58,7 @@ def measure(name, rings, spacing, repeats):
     precompute = time.perf_counter() - start
     pose = deformer.solve(targets)
     ours = median_time(lambda: deformer.solve(targets), repeats)
-    rhs = np.ones((len(deformer.free), 2))
+    rhs = np.ones(2 * len(deformer.free))
     back = median_time(lambda: deformer._hessian.solve(rhs), max(repeats, 20))
     igl_pre, igl_solve = libigl_arap(graph, handles, targets, 10)
     igl_time = median_time(igl_solve, repeats)

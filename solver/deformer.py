@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import qdldl
-from scipy.sparse import identity, triu
+from scipy.sparse import block_diag, coo_matrix, identity, triu
 from scipy.spatial import cKDTree
 
 from .energy import Energy, similarity_rows
@@ -82,29 +82,50 @@ class Solution:
 
 
 class _AreaConstraint:
-    """Signed area of all boundary loops: a quadratic form in the positions."""
+    """Signed area of all boundary loops, a quadratic form in the stacked free coordinates.
 
-    def __init__(self, graph):
-        self.here = graph.boundary
-        self.after = np.concatenate([np.roll(loop, -1) for loop in graph.boundary_loops])
-        self.before = np.concatenate([np.roll(loop, 1) for loop in graph.boundary_loops])
-        self.rest = self.area(graph.points)
+    With all coordinates stacked ``p = [x; y]`` the shoelace sum is ``area = p^T Q p / 2`` for a
+    constant sparse ``Q``. Splitting ``p`` into free (``v``) and fixed (``c``) parts gives
+    ``area(v) = v^T Q_ff v / 2 + v . (Q_fc c) + c^T Q_cc c / 2`` and ``d area / dv = Q_ff v + Q_fc c``.
+    """
+
+    def __init__(self, graph, free, fixed):
+        n = graph.n
+        here = graph.boundary
+        after = np.concatenate([np.roll(loop, -1) for loop in graph.boundary_loops])
+        half = np.full(len(here), 0.5)
+        # x_here * y_after / 2 - x_after * y_here / 2, symmetrised.
+        shoelace = coo_matrix((np.concatenate([half, -half]),
+                               (np.concatenate([here, after]), np.concatenate([n + after, n + here]))),
+                              shape=(2 * n, 2 * n)).tocsr()
+        shoelace = (shoelace + shoelace.T).tocsr()
+        stacked_free = np.concatenate([free, n + free])
+        stacked_fixed = np.concatenate([fixed, n + fixed])
+        rows_free = shoelace[stacked_free]
+        self._free_free = rows_free[:, stacked_free].tocsr()
+        self._free_fixed = rows_free[:, stacked_fixed].tocsr()
+        self._fixed_fixed = shoelace[stacked_fixed][:, stacked_fixed].tocsr()
+        rest = np.concatenate([graph.points[:, 0], graph.points[:, 1]])
+        self.rest = 0.5 * float(rest @ (shoelace @ rest))
+        self._linear = np.zeros(len(stacked_free))
+        self._constant = 0.0
+
+    def hold(self, fixed_coordinates):
+        """Take the fixed points' stacked coordinates ``(2 c,)`` for the solve that follows."""
+        self._linear = self._free_fixed @ fixed_coordinates
+        self._constant = 0.5 * float(fixed_coordinates @ (self._fixed_fixed @ fixed_coordinates))
 
     def area(self, v):
-        h, a = v[self.here], v[self.after]
-        return 0.5 * float(np.dot(h[:, 0], a[:, 1]) - np.dot(a[:, 0], h[:, 1]))
+        return 0.5 * float(v @ (self._free_free @ v)) + float(self._linear @ v) + self._constant
 
     def jacobian(self, v):
-        """d area / d V, shape (n, 2)."""
-        grad = np.zeros_like(v)
-        grad[self.here, 0] = 0.5 * (v[self.after, 1] - v[self.before, 1])
-        grad[self.here, 1] = 0.5 * (v[self.before, 0] - v[self.after, 0])
-        return grad
+        """d area / d v, stacked ``(2 f,)``."""
+        return self._free_free @ v + self._linear
 
     def restore(self, v, direction):
         """Move ``v`` along ``direction`` so its area is the rest area; False if it cannot."""
-        a = self.area(direction)
-        b = float(np.einsum("ij,ij->", self.jacobian(v), direction))
+        a = 0.5 * float(direction @ (self._free_free @ direction))
+        b = float(self.jacobian(v) @ direction)
         c = self.area(v) - self.rest
         if abs(a) <= 1e-14 * abs(b):
             if b == 0.0:
@@ -178,10 +199,17 @@ class Deformer:
         self._resting = ~anchored[labels]  # islands without handles stay put
         fixed |= self._resting
         self.free = np.flatnonzero(~fixed)
+        self._fixed = np.flatnonzero(fixed)
 
         if len(self.free):
-            self._free_transpose = self.energy.matrix.tocsc()[:, self.free].T.tocsr()
-            weight = np.asarray(abs(self._free_transpose).sum(axis=1)).ravel()
+            # The solve iterates on the free points' coordinates stacked [x; y] (length 2 f) and
+            # keeps A V coordinate-major (2, r): A V = A_c c + [A_f 0; 0 A_f] v, flattened.
+            matrix = self.energy.matrix.tocsc()
+            free_columns = matrix[:, self.free]
+            self._free_block = block_diag([free_columns, free_columns], format="csr")
+            self._free_block_transpose = self._free_block.T.tocsr()
+            self._fixed_columns = matrix[:, self._fixed].tocsr()
+            weight = np.asarray(abs(free_columns).sum(axis=0)).ravel()
             if np.any(weight == 0.0):
                 raise ValueError(
                     f"with these weights {int((weight == 0).sum())} points are in no energy term and "
@@ -206,7 +234,7 @@ class Deformer:
             # them where the rigid fit put them.
             normal = normal + 1e-12 * _diagonal_scale(normal) * identity(normal.shape[0], format="csc")
             self._similarity_factor = qdldl.Solver(triu(normal, format="csc"), upper=True)
-        self._area = _AreaConstraint(graph) if self.preserve_area else None
+        self._area = _AreaConstraint(graph, self.free, self._fixed) if self.preserve_area else None
         if self._area is not None and not np.isin(graph.boundary, self.free).any():
             raise ValueError("preserve_area needs at least one boundary point that is not a handle")
 
@@ -278,13 +306,30 @@ class Deformer:
         positions = self._start(targets, initial)
         if len(self.free) == 0:
             return Solution(positions, 0, [], True)
+        fixed = positions[self._fixed]
+        fixed_rows = (self._fixed_columns @ fixed).T.ravel()
+        if self._area is not None:
+            self._area.hold(fixed.T.ravel())
+        folds = positions if self.prevent_flips else None
         try:
-            return self._iterate(positions, max_iterations, tolerance)
+            solution = self._iterate(positions[self.free].T.ravel(), fixed_rows, folds,
+                                     max_iterations, tolerance)
         except RuntimeError as error:  # qdldl: a matrix that is not positive definite
             raise ValueError(f"the deformation system is singular ({error}): the weights or handles "
                              "leave part of the shape free to move without changing the energy") from None
+        positions[self.free] = solution.positions.reshape(2, -1).T
+        solution.positions = positions
+        return solution
 
-    def _iterate(self, positions, max_iterations, tolerance):
+    def _evaluate(self, v, fixed_rows):
+        """Energy, residual ``(2 r,)`` and rows ``A V`` ``(2, r)`` at free coordinates ``v``."""
+        rows = (fixed_rows + self._free_block @ v).reshape(2, -1)
+        residual = self.energy.residual(rows).ravel()
+        return float(residual @ residual), residual, rows
+
+    def _iterate(self, v, fixed_rows, folds, max_iterations, tolerance):
+        """Minimise over the stacked free coordinates ``v`` (2 f,); ``folds`` is a full (n, 2)
+        pose to count folded triangles in, or None."""
         step_limit = tolerance * self.graph.size
         area = self._area
         direction = None
@@ -292,37 +337,35 @@ class Deformer:
         newton_limit = NEWTON_STEPS if area is None else NEWTON_STEPS_WITH_AREA
         if isinstance(hessian, PaperMatrix):
             newton_limit = 0
-        rows_now = self.energy.matrix @ positions
-        hessian.factorize(rows_now)
-        newton_steps = 1 if newton_limit else 0
         if area is not None:
-            direction = self._area_direction(positions)
-            area.restore(positions, direction)
-            rows_now = self.energy.matrix @ positions
-
-        residual = rows_now - self.energy.targets(rows_now)
-        energy = float(np.einsum("ij,ij->", residual, residual))
-        gradient = self._free_transpose @ residual  # half the true gradient
+            hessian.factorize((fixed_rows + self._free_block @ v).reshape(2, -1))
+            direction = hessian.solve(area.jacobian(v))
+            area.restore(v, direction)
+        energy, residual, rows = self._evaluate(v, fixed_rows)
+        if area is None:
+            hessian.factorize(rows)
+        newton_steps = 1 if newton_limit else 0
+        gradient = self._free_block_transpose @ residual  # half the true gradient
         history = deque(maxlen=HISTORY)
-        solution = Solution(positions)
-        self._folded = self._count_folded(positions) if self.prevent_flips else 0
+        solution = Solution(v)
+        self._folded = self._count_folded(v, folds) if folds is not None else 0
         for _ in range(max_iterations):
             search_gradient = gradient
             if area is not None:
                 # Along the constraint the energy's curvature is the Lagrangian's.
-                multiplier = self._multiplier(gradient, positions, direction)
-                search_gradient = gradient - multiplier * area.jacobian(positions)[self.free]
+                multiplier = self._multiplier(gradient, v, direction)
+                search_gradient = gradient - multiplier * area.jacobian(v)
             step = -self._two_loop(search_gradient, history)
             if area is not None:
-                step = self._tangent(step, positions, direction)
-            slope = 2.0 * float(np.einsum("ij,ij->", gradient, step))
+                step = self._tangent(step, v, direction)
+            slope = 2.0 * float(gradient @ step)
             if slope >= 0.0 and history:
                 history.clear()
                 step = -hessian.solve(search_gradient)
                 if area is not None:
-                    step = self._tangent(step, positions, direction)
-                slope = 2.0 * float(np.einsum("ij,ij->", gradient, step))
-            moved = self._line_search(positions, energy, step, slope, direction)
+                    step = self._tangent(step, v, direction)
+                slope = 2.0 * float(gradient @ step)
+            moved = self._line_search(v, fixed_rows, folds, energy, step, slope, direction)
             if moved is None:
                 # No decrease is possible: this is a minimum to rounding.
                 solution.iterations += 1
@@ -331,93 +374,82 @@ class Deformer:
                     solution.converged = True
                     break
                 continue
-            new_positions, new_energy, new_residual, rows_now = moved
-            new_gradient = self._free_transpose @ new_residual
-            s = new_positions[self.free] - positions[self.free]
+            new_v, new_energy, new_residual, rows = moved
+            new_gradient = self._free_block_transpose @ new_residual
+            s = new_v - v
             largest = float(np.abs(s).max())
             solution.iterations += 1
             solution.energies.append(new_energy)
             refactor = newton_steps < newton_limit and largest > NEWTON_UNTIL * self.graph.size
             if refactor:
-                hessian.factorize(rows_now)
+                hessian.factorize(rows)
                 newton_steps += 1
                 history.clear()
             if area is not None:
-                new_direction = self._area_direction(new_positions)
+                new_direction = hessian.solve(area.jacobian(new_v))
             if not refactor:
                 y = new_gradient - gradient
                 if area is not None:
-                    multiplier = self._multiplier(new_gradient, new_positions, new_direction)
-                    y -= multiplier * (area.jacobian(new_positions) - area.jacobian(positions))[self.free]
-                sy = float(np.einsum("ij,ij->", s, y))
-                if sy > 1e-12 * np.sqrt(float(np.einsum("ij,ij->", s, s)) * float(np.einsum("ij,ij->", y, y))):
+                    multiplier = self._multiplier(new_gradient, new_v, new_direction)
+                    y -= multiplier * (area.jacobian(new_v) - area.jacobian(v))
+                sy = float(s @ y)
+                if sy > 1e-12 * np.sqrt(float(s @ s) * float(y @ y)):
                     history.append((s, y, 1.0 / sy))
-            positions, energy, gradient = new_positions, new_energy, new_gradient
+            v, energy, gradient = new_v, new_energy, new_gradient
             if area is not None:
                 direction = new_direction
             if tolerance > 0.0 and largest <= step_limit:
                 solution.converged = True
                 break
-        solution.positions = positions
+        solution.positions = v
         solution.factorizations = newton_steps
         return solution
 
     def _two_loop(self, gradient, history):
-        """L-BFGS inverse-Hessian product with K as the initial Hessian."""
+        """L-BFGS inverse-Hessian product with the last factor as the initial Hessian."""
         q = gradient.copy()
         coefficients = []
         for s, y, rho in reversed(history):
-            a = rho * float(np.einsum("ij,ij->", s, q))
+            a = rho * float(s @ q)
             q -= a * y
             coefficients.append(a)
         z = self._hessian.solve(q)
         for (s, y, rho), a in zip(history, reversed(coefficients)):
-            b = rho * float(np.einsum("ij,ij->", y, z))
-            z += (a - b) * s
+            z += (a - rho * float(y @ z)) * s
         return z
 
-    def _area_direction(self, positions):
-        """``K^-1 J^T`` on the free points, embedded in an (n, 2) array."""
-        direction = np.zeros_like(positions)
-        direction[self.free] = self._hessian.solve(self._area.jacobian(positions)[self.free])
-        return direction
-
-    def _count_folded(self, positions):
-        """Triangles turned clockwise (folded over) at ``positions``."""
+    def _count_folded(self, v, positions):
+        """Triangles turned clockwise (folded over) with the free points at ``v``."""
+        positions[self.free] = v.reshape(2, -1).T
         return int(np.count_nonzero(triangle_cross(positions, self.graph.triangles) <= 0.0))
 
-    def _multiplier(self, gradient, positions, direction):
+    def _multiplier(self, gradient, v, direction):
         """Least-squares Lagrange multiplier of the area constraint in the metric of H."""
-        jacobian = self._area.jacobian(positions)[self.free]
-        along = float(np.einsum("ij,ij->", jacobian, direction[self.free]))
+        along = float(self._area.jacobian(v) @ direction)
         if along <= 0.0:
             return 0.0
-        return float(np.einsum("ij,ij->", gradient, direction[self.free])) / along
+        return float(gradient @ direction) / along
 
-    def _tangent(self, step, positions, direction):
-        """Remove the part of a free-point step that changes the area to first order."""
-        jacobian = self._area.jacobian(positions)[self.free]
-        d = direction[self.free]
-        along = float(np.einsum("ij,ij->", jacobian, d))
+    def _tangent(self, step, v, direction):
+        """Remove the part of a step that changes the area to first order."""
+        jacobian = self._area.jacobian(v)
+        along = float(jacobian @ direction)
         if along <= 0.0:
             return step
-        return step - d * (float(np.einsum("ij,ij->", jacobian, step)) / along)
+        return step - direction * (float(jacobian @ step) / along)
 
-    def _line_search(self, positions, energy, step, slope, direction):
+    def _line_search(self, v, fixed_rows, folds, energy, step, slope, direction):
         """Backtrack from the full step until the energy decreases enough (Armijo)."""
         if slope >= 0.0:
             return None
         alpha = 1.0
         for _ in range(MAX_HALVINGS):
-            trial = positions.copy()
-            trial[self.free] += alpha * step
+            trial = v + alpha * step
             if (self._area is None or self._area.restore(trial, direction)) and (
-                    not self.prevent_flips or self._count_folded(trial) <= self._folded):
-                rows_now = self.energy.matrix @ trial
-                residual = rows_now - self.energy.targets(rows_now)
-                trial_energy = float(np.einsum("ij,ij->", residual, residual))
+                    folds is None or self._count_folded(trial, folds) <= self._folded):
+                trial_energy, residual, rows = self._evaluate(trial, fixed_rows)
                 if trial_energy <= energy + ARMIJO * alpha * slope:
-                    return trial, trial_energy, residual, rows_now
+                    return trial, trial_energy, residual, rows
             alpha *= 0.5
         return None
 

@@ -15,7 +15,10 @@ weight multiplies the rows, so the weight multiplies the squared term):
 
 Because every target is the exact minimiser of its own residual, ``E(V) = min_b ||A V - b||^2``
 over admissible targets, and its gradient is ``2 A^T (A V - b(V))`` (envelope theorem). That is
-what lets :mod:`solver.optimize` run quasi-Newton steps with an energy that never rises.
+what lets :mod:`solver.deformer` run quasi-Newton steps with an energy that never rises.
+
+The solver's hot path keeps rows coordinate-major, shape ``(2, r)``: ``rows[0]`` holds the x
+parts of ``A V``, ``rows[1]`` the y parts, so x and y stack into one flat vector without copies.
 """
 
 from __future__ import annotations
@@ -121,7 +124,8 @@ class Energy:
         self._curve_rest_y = np.ascontiguousarray(self.curve_rest[:, 1])
         rest_edge = rest_rows[self.length_rows]
         self.rest_length = np.linalg.norm(rest_edge, axis=1)
-        self._rest_direction = rest_edge / np.maximum(self.rest_length, 1e-300)[:, None]
+        self._rest_direction = np.ascontiguousarray(
+            (rest_edge / np.maximum(self.rest_length, 1e-300)[:, None]).T)
         self._group_count = len(graph.boundary)
         self.n = n
 
@@ -183,6 +187,37 @@ class Energy:
         vals = np.concatenate([np.ones(k), -np.ones(k)])
         return coo_matrix((vals, (rows, cols)), shape=(k, n)), inner
 
+    def residual(self, rows):
+        """``A V - b(V)`` from ``A V``: the local step and the residual in one.
+
+        Parameters
+        ----------
+        rows : (2, r) float ndarray
+            ``A @ V``, coordinate-major.
+
+        Returns
+        -------
+        (2, r) float64 ndarray
+        """
+        residual = rows.copy()  # mean value rows have target zero
+        cos, sin, _ = self.curve_rotations(rows)
+        cos, sin = cos[self._groups], sin[self._groups]
+        rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
+        curve = residual[:, self.curve_rows]
+        curve[0] -= cos * rest_x - sin * rest_y
+        curve[1] -= sin * rest_x + cos * rest_y
+        # Nearest vector of rest length for each inner edge (eq. 4's e(v_i, v_j)).
+        edge = rows[:, self.length_rows]
+        length = np.hypot(edge[0], edge[1])
+        if length.min(initial=1.0) > 0.0:
+            residual[:, self.length_rows] = edge * (1.0 - self.rest_length / length)
+        else:  # a collapsed edge: any direction is optimal; keep its rest direction
+            direction = self._rest_direction.copy()
+            ok = length > 0.0
+            direction[:, ok] = edge[:, ok] / length[ok]
+            residual[:, self.length_rows] = edge - self.rest_length * direction
+        return residual
+
     def targets(self, rows_now):
         """The local step: ``b(V)`` from ``A V``.
 
@@ -195,27 +230,16 @@ class Energy:
         -------
         (r, 2) float64 ndarray
         """
-        targets = np.zeros_like(rows_now)
-        cos, sin, _ = self.curve_rotations(rows_now)
-        cos, sin = cos[self._groups], sin[self._groups]
-        rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
-        curve = targets[self.curve_rows]
-        curve[:, 0] = cos * rest_x - sin * rest_y
-        curve[:, 1] = sin * rest_x + cos * rest_y
-        # Nearest vector of rest length for each inner edge (eq. 4's e(v_i, v_j)).
-        edge = rows_now[self.length_rows]
-        length = np.hypot(edge[:, 0], edge[:, 1])
-        if length.min(initial=1.0) > 0.0:
-            targets[self.length_rows] = edge * (self.rest_length / length)[:, None]
-        else:  # a collapsed edge: any direction is optimal; keep its rest direction
-            direction = self._rest_direction.copy()
-            ok = length > 0.0
-            direction[ok] = edge[ok] / length[ok, None]
-            targets[self.length_rows] = self.rest_length[:, None] * direction
-        return targets
+        rows = np.ascontiguousarray(np.asarray(rows_now, dtype=np.float64).T)
+        return (rows - self.residual(rows)).T
 
-    def curve_rotations(self, rows_now):
+    def curve_rotations(self, rows):
         """Rotation of each boundary vertex fitted to its three curve rows (2D Procrustes).
+
+        Parameters
+        ----------
+        rows : (2, r) float ndarray
+            ``A @ V``, coordinate-major.
 
         Returns
         -------
@@ -225,8 +249,7 @@ class Energy:
             ``|sum_k t_k . d_k, sum_k t_k x d_k|``; the fitted rotation maximises the first.
         """
         rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
-        now = rows_now[self.curve_rows]
-        now_x, now_y = now[:, 0], now[:, 1]
+        now_x, now_y = rows[0, self.curve_rows], rows[1, self.curve_rows]
         dots = rest_x * now_x + rest_y * now_y
         crosses = rest_x * now_y - rest_y * now_x
         cos = np.bincount(self._groups, weights=dots, minlength=self._group_count)
@@ -250,9 +273,8 @@ class Energy:
         residual : (r, 2) float64 ndarray
             ``A V - b(V)``.
         """
-        rows_now = self.matrix @ positions
-        residual = rows_now - self.targets(rows_now)
-        return float(np.einsum("ij,ij->", residual, residual)), residual
+        residual = self.residual(np.ascontiguousarray((self.matrix @ positions).T))
+        return float(np.vdot(residual, residual)), residual.T
 
 
 def similarity_rows(points, triangles):

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 import qdldl
-from scipy.sparse import block_diag, coo_matrix, csc_matrix, triu
+from scipy.sparse import block_diag, coo_matrix, csc_matrix, csr_matrix, triu
 
 __all__ = ["Hessian"]
 
@@ -57,35 +57,25 @@ class Hessian:
         stiffness = (free_columns.T @ free_columns).tocsc()
         base = block_diag([stiffness, stiffness], format="csc")
 
-        # Points each low-rank term touches, as (term, corner) arrays of point indices, and the
-        # coefficients that turn the per-row vectors w into u = A^T w on those points.
-        edges = energy.length_edges
-        self._edge_points = edges                                   # (e, 2)
-        loops = energy.curve_points                                 # (m, 3): here, before, after
-        self._group_points = loops
-        # Every term's vector u is laid out flat: edge terms first (4 entries each), then curve
-        # groups (6 each). An entry of c u u^T is coefficient[term] * u[a] * u[b]; we keep only the
-        # upper-triangle entries between free unknowns and remember their flat indices.
-        rows, cols, first, second, owner = [], [], [], [], []
-        offset, term_offset = 0, 0
+        # Points each low-rank term touches, as (term, corner) arrays of point indices.
+        self._edge_points = energy.length_edges                     # (e, 2)
+        self._group_points = energy.curve_points                    # (m, 3): here, before, after
+        # Each term contributes c u u^T on its points. Its k x k products are laid out flat, edge
+        # terms first (4 x 4 each), then curve groups (6 x 6); a constant sparse matrix sums the
+        # products that land on each stored upper-triangle entry, so assembly is one mat-vec.
+        rows, cols, flat_index = [], [], []
+        offset = 0
         for points in (self._edge_points, self._group_points):
             stacked = np.concatenate([slot[points], slot[points] + f], axis=1)
             stacked[np.concatenate([slot[points], slot[points]], axis=1) < 0] = -1
             count, k = stacked.shape
-            flat = offset + np.arange(count * k).reshape(count, k)
             rows.append(np.repeat(stacked, k, axis=1).ravel())
             cols.append(np.tile(stacked, (1, k)).ravel())
-            first.append(np.repeat(flat, k, axis=1).ravel())
-            second.append(np.tile(flat, (1, k)).ravel())
-            owner.append(np.repeat(term_offset + np.arange(count), k * k))
-            offset += count * k
-            term_offset += count
+            flat_index.append(offset + np.arange(count * k * k))
+            offset += count * k * k
         rows, cols = np.concatenate(rows), np.concatenate(cols)
         keep = (rows >= 0) & (cols >= 0) & (rows <= cols)
-        rows, cols = rows[keep], cols[keep]
-        self._first = np.concatenate(first)[keep]
-        self._second = np.concatenate(second)[keep]
-        self._owner = np.concatenate(owner)[keep]
+        rows, cols, flat_index = rows[keep], cols[keep], np.concatenate(flat_index)[keep]
         upper = triu(base, format="coo")
         # Build the pattern from coordinates only: adding sparse matrices is not safe here, as
         # scipy's sum assumes canonical (sorted, duplicate-free) operands and triu's are not.
@@ -100,7 +90,8 @@ class Hessian:
         locate = lambda r, c: np.searchsorted(keys, r + shape.shape[0] * c)
         self._base = np.bincount(locate(upper.row.astype(np.int64), upper.col.astype(np.int64)),
                                  weights=upper.data, minlength=shape.nnz)
-        self._positions = locate(rows, cols)
+        self._gather = csr_matrix((np.ones(len(rows)), (locate(rows, cols), flat_index)),
+                                  shape=(shape.nnz, offset))
         self._upper = csc_matrix((self._base.copy(), shape.indices, shape.indptr), shape=shape.shape)
         self._factor = None
 
@@ -116,42 +107,44 @@ class Hessian:
         self._group_base_x = np.ascontiguousarray(corners[..., 0])
         self._group_base_y = np.ascontiguousarray(corners[..., 1])
 
-    def matrix(self, rows_now):
-        """Upper triangle of the projected Hessian (halved) at the pose with ``A V = rows_now``.
+    def matrix(self, rows):
+        """Upper triangle of the projected Hessian (halved) at the pose with ``A V = rows``.
+
+        Parameters
+        ----------
+        rows : (2, r) float ndarray
+            ``A @ V``, coordinate-major.
 
         Returns
         -------
         (2 f, 2 f) scipy.sparse.csc_matrix
             Reused by the next call: copy it to keep it.
         """
-        (edge_c, edge_u), (group_c, group_u) = self._edge_terms(rows_now), self._group_terms(rows_now)
-        coefficient = np.concatenate([edge_c, group_c])
-        u = np.concatenate([edge_u.ravel(), group_u.ravel()])
-        values = coefficient[self._owner] * u[self._first] * u[self._second]
+        products = [(c[:, None, None] * u[:, :, None] * u[:, None, :]).ravel()
+                    for c, u in (self._edge_terms(rows), self._group_terms(rows))]
         # The pattern never changes: overwrite the values of one matrix rather than building one.
-        np.subtract(self._base, np.bincount(self._positions, weights=values, minlength=len(self._base)),
-                    out=self._upper.data)
+        np.subtract(self._base, self._gather @ np.concatenate(products), out=self._upper.data)
         return self._upper
 
-    def _edge_terms(self, rows_now):
+    def _edge_terms(self, rows):
         """Coefficients (e,) and u vectors (e, 4) laid out as [x_i, x_j, y_i, y_j]."""
         energy = self.energy
-        edge = rows_now[energy.length_rows]
-        length = np.hypot(edge[:, 0], edge[:, 1])
+        edge_x, edge_y = rows[0, energy.length_rows], rows[1, energy.length_rows]
+        length = np.hypot(edge_x, edge_y)
         ok = length > 0
         inverse = np.divide(1.0, length, out=np.zeros_like(length), where=ok)
         coefficient = np.minimum(1.0 - CLAMP, energy.rest_length * inverse)  # 0 where collapsed
         s = energy.edge_scale
-        u = np.empty((len(edge), 4))
-        u[:, 0] = -s * edge[:, 1] * inverse  # the edge's unit normal, scaled
-        u[:, 2] = s * edge[:, 0] * inverse
+        u = np.empty((len(length), 4))
+        u[:, 0] = -s * edge_y * inverse  # the edge's unit normal, scaled
+        u[:, 2] = s * edge_x * inverse
         u[:, 1] = -u[:, 0]
         u[:, 3] = -u[:, 2]
         return coefficient, u
 
-    def _group_terms(self, rows_now):
+    def _group_terms(self, rows):
         """Coefficients (m,) and u vectors (m, 6) laid out as [x_here, x_before, x_after, y_...]."""
-        cos, sin, norm = self.energy.curve_rotations(rows_now)
+        cos, sin, norm = self.energy.curve_rotations(rows)
         ok = (norm > 0) & (self._group_total > 0)
         coefficient = np.where(ok, np.minimum(1.0 - CLAMP, self._group_total / np.where(ok, norm, 1.0)), 0.0)
         # u is the fitted rotation applied to fixed combinations of the rest rows (see __init__).
@@ -161,9 +154,10 @@ class Hessian:
         u[:, 3:] = sin[:, None] * base_x + cos[:, None] * base_y
         return coefficient, u
 
-    def factorize(self, rows_now):
-        """Factor the Hessian at this pose (symbolic analysis only the first time)."""
-        upper = self.matrix(rows_now)
+    def factorize(self, rows):
+        """Factor the Hessian at the pose with ``A V = rows`` ((2, r)); the symbolic analysis
+        is done only the first time."""
+        upper = self.matrix(rows)
         if self._factor is None:
             self._factor = qdldl.Solver(upper, upper=True)
         else:
@@ -174,15 +168,14 @@ class Hessian:
 
         Parameters
         ----------
-        rhs : (f, 2) float ndarray
+        rhs : (2 f,) float ndarray
+            Stacked ``[x of free points; y of free points]``.
 
         Returns
         -------
-        (f, 2) float64 ndarray
+        (2 f,) float64 ndarray
         """
-        stacked = self._factor.solve(np.concatenate([rhs[:, 0], rhs[:, 1]]))
-        half = self.size // 2
-        return np.stack([stacked[:half], stacked[half:]], axis=1)
+        return self._factor.solve(rhs)
 
 
 class PaperMatrix:
@@ -198,10 +191,10 @@ class PaperMatrix:
         stiffness = (columns.T @ columns).tocsc()
         self._factor = qdldl.Solver(triu(stiffness, format="csc"), upper=True)
 
-    def factorize(self, rows_now):
+    def factorize(self, rows):
         """Nothing to do: the matrix does not depend on the pose."""
 
     def solve(self, rhs):
-        """Solve for each coordinate; ``rhs`` and the result are (f, 2)."""
-        return np.stack([self._factor.solve(np.ascontiguousarray(rhs[:, 0])),
-                         self._factor.solve(np.ascontiguousarray(rhs[:, 1]))], axis=1)
+        """Solve for each coordinate; ``rhs`` and the result are stacked ``(2 f,)``."""
+        half = len(rhs) // 2
+        return np.concatenate([self._factor.solve(rhs[:half]), self._factor.solve(rhs[half:])])
