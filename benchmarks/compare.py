@@ -47,6 +47,7 @@ SCALING_LARGE = 39000
 METHODS = [
     ("ours", lambda g, d: peers.ours(g, d)),
     ("ours + area", lambda g, d: peers.ours(g, d, preserve_area=True)),
+    ("ours, no folds", lambda g, d: peers.ours(g, d, prevent_flips=True, name="ours, no folds")),
     ("libigl ARAP, 10 it", lambda g, d: peers.libigl_arap(g, d, 10)),
     ("libigl ARAP, converged", lambda g, d: peers.libigl_arap(g, d, None)),
     ("Blender LapDeform, 1 it", lambda g, d: peers.blender_laplacian(g, d, 1)),
@@ -467,8 +468,9 @@ def write_doc(path, rows, fig3, zero_note, fig4, width, fig5, scale_rows, args, 
       "stem.\n")
     w("Methods:\n")
     w("* **ours**: `solver.Deformer(graph, handles)` with default weights, iterations "
-      "(at most 30) and tolerance; **ours + area** adds `preserve_area=True`. Bind = building "
-      "the `Deformer` (energy matrix, symbolic and numeric factorisations).")
+      "(at most 30) and tolerance; **ours + area** adds `preserve_area=True`; **ours, no folds** "
+      "adds `prevent_flips=True` (the fold penalty of `solver/folds.py`, the add-on's default). "
+      "Bind = building the `Deformer` (energy matrix, symbolic and numeric factorisations).")
     w("* **libigl ARAP** (PyPI `libigl`, `igl.arap_precomputation(V, F, 2, b, data)` and "
       "`igl.arap_solve`), started from the rest shape as `arap_solve` expects: 10 iterations, "
       "and converged (iterated until no vertex moves more than 1e-4 of the shape's size per "
@@ -628,9 +630,15 @@ def where_peers_win(rows, fig4):
     lines.append(
         f"* **Ours with the area constraint** keeps the total area to rounding in every case, at "
         f"{times('ours + area', 'solve / ours'):.2f}x the time of ours without it (median).")
+    folded = lambda name: sum(1 for r in rows if r["method"] == name and r["flips"])
+    lines.append(
+        f"* **Ours with the fold penalty** (`prevent_flips=True`, the add-on's default) has flipped "
+        f"triangles in {folded('ours, no folds')} of {len(cases)} cases (ours without it: "
+        f"{folded('ours')}), at {times('ours, no folds', 'solve / ours'):.2f}x the time of ours "
+        f"(median); where nothing folds the two poses are the same.")
     lines.append("")
     lines.append("### Our weak spots, seen in these runs\n")
-    for name in ("ours", "ours + area"):
+    for name in ("ours", "ours + area", "ours, no folds"):
         mine = [r for r in rows if r["method"] == name]
         flips = [f"{r['case']} {r['drag']} ({r['flips']})" for r in mine if r["flips"]]
         capped = [f"{r['case']} {r['drag']}" for r in mine if not r.get("converged", True)]

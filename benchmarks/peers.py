@@ -35,11 +35,12 @@ class Method:
     extra: dict = field(default_factory=dict)
 
 
-def ours(graph, groups, preserve_area=False, weights=None, name=None):
+def ours(graph, groups, preserve_area=False, weights=None, name=None, prevent_flips=False):
     """This solver, default iterations and tolerance."""
     handles, targets = drag_targets(graph, groups)
     start = time.perf_counter()
-    deformer = solver.Deformer(graph, handles, weights=weights, preserve_area=preserve_area)
+    deformer = solver.Deformer(graph, handles, weights=weights, preserve_area=preserve_area,
+                               prevent_flips=prevent_flips)
     bind = time.perf_counter() - start
     method = Method(name or ("ours + area" if preserve_area else "ours"), bind, None)
 

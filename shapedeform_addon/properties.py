@@ -42,8 +42,9 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
                                 default=False, update=_settings_changed)
     prevent_flips: BoolProperty(
         name="Prevent Folds",
-        description="Never fold triangles over in large bends; the pose may then stop short of fully relaxed",
-        default=False, update=_settings_changed)
+        description="Push triangles squeezed below a tenth of their area back open, so large bends "
+                    "do not fold the shape over itself; poses that squeeze none are unchanged",
+        default=True, update=_settings_changed)
     weight_laplacian: FloatProperty(name="Boundary Detail", description="Weight of the curve Laplacian term",
                                     default=1.0, min=0.0, soft_max=10.0, update=_settings_changed)
     weight_mvc: FloatProperty(name="Interior Shape", description="Weight of the mean value coordinates term",

@@ -16,6 +16,9 @@ With ``preserve_area`` the total area is a hard constraint (section 5). Each ite
 extra solve ``d = H^-1 J^T`` as the paper does with ``(A^T A)^-1 J^T``; the step is projected onto
 the constraint's tangent in that metric and, since area is quadratic in the positions, the exact
 correction along ``d`` is a root of a quadratic: the area is met to rounding at every iterate.
+
+With ``prevent_flips`` the energy gains the fold penalty of :mod:`solver.folds`, with its
+Gauss-Newton terms in the Newton matrix.
 """
 
 from __future__ import annotations
@@ -29,8 +32,8 @@ from scipy.sparse import block_diag, coo_matrix, identity, triu
 from scipy.spatial import cKDTree
 
 from .energy import Energy, similarity_rows
+from .folds import FoldPenalty
 from .hessian import Hessian, PaperMatrix
-from .triangulate import triangle_cross
 
 __all__ = ["Deformer", "Solution", "DEFAULT_MAX_ITERATIONS", "DEFAULT_TOLERANCE"]
 
@@ -166,10 +169,9 @@ class Deformer:
         ``True`` up to ``NEWTON_MAX_POINTS`` points.
     prevent_flips : bool
         The paper's energy admits poses with folded (inverted) triangles in large bends (where a
-        dragged region meets the rest, typically). With this on, the line search refuses steps
-        that fold more triangles than the current pose has, so a pose that starts unfolded stays
-        unfolded and the energy still never rises; the price is a pose that may stop short of
-        the energy's minimum (the solve ends where every further step would fold).
+        dragged region meets the rest, typically). With this on, triangles squeezed below a
+        tenth of their rest area are pushed back open by a penalty (:mod:`solver.folds`); poses
+        that squeeze none that far are the paper's minima unchanged.
 
     Raises
     ------
@@ -182,6 +184,7 @@ class Deformer:
                  prevent_flips=False):
         self.graph = graph
         self.prevent_flips = bool(prevent_flips)
+        self._folds = None
         handles = np.asarray(handles, dtype=np.int64).ravel()
         if len(handles) and (handles.min() < 0 or handles.max() >= graph.n):
             raise ValueError(f"handle indices must be in [0, {graph.n}), got {handles.min()}..{handles.max()}")
@@ -214,12 +217,15 @@ class Deformer:
                 raise ValueError(
                     f"with these weights {int((weight == 0).sum())} points are in no energy term and "
                     "nothing decides where they go; give 'mvc' or 'edge' a positive weight")
+            if self.prevent_flips:
+                self._folds = FoldPenalty(graph, self.free, self._fixed)
             self._coarse = None
             if newton or (newton is None and graph.n <= NEWTON_MAX_POINTS):
-                self._hessian = Hessian(self.energy, self.free)
+                self._hessian = Hessian(self.energy, self.free,
+                                        None if self._folds is None else graph.triangles)
             else:
                 self._hessian = PaperMatrix(self.energy, self.free)
-                self._coarse = _CoarseStart(graph, handles, weights, preserve_area)
+                self._coarse = _CoarseStart(graph, handles, weights, preserve_area, self.prevent_flips)
         if len(self.free) and self._coarse is None:
             # The similarity system for the start (see energy.similarity_rows), x and y stacked.
             similarity = similarity_rows(graph.points, graph.triangles).tocsc()
@@ -310,10 +316,10 @@ class Deformer:
         fixed_rows = (self._fixed_columns @ fixed).T.ravel()
         if self._area is not None:
             self._area.hold(fixed.T.ravel())
-        folds = positions if self.prevent_flips else None
+        if self._folds is not None:
+            self._folds.hold(fixed)
         try:
-            solution = self._iterate(positions[self.free].T.ravel(), fixed_rows, folds,
-                                     max_iterations, tolerance)
+            solution = self._iterate(positions[self.free].T.ravel(), fixed_rows, max_iterations, tolerance)
         except RuntimeError as error:  # qdldl: a matrix that is not positive definite
             raise ValueError(f"the deformation system is singular ({error}): the weights or handles "
                              "leave part of the shape free to move without changing the energy") from None
@@ -322,14 +328,21 @@ class Deformer:
         return solution
 
     def _evaluate(self, v, fixed_rows):
-        """Energy, residual ``(2 r,)`` and rows ``A V`` ``(2, r)`` at free coordinates ``v``."""
+        """Energy, half its gradient ``(2 f,)`` and rows ``A V`` ``(2, r)`` at free coordinates
+        ``v``."""
         rows = (fixed_rows + self._free_block @ v).reshape(2, -1)
         residual = self.energy.residual(rows).ravel()
-        return float(residual @ residual), residual, rows
+        energy, gradient = float(residual @ residual), self._free_block_transpose @ residual
+        if self._folds is not None:
+            fold_energy, fold_gradient = self._folds.evaluate(v)
+            energy, gradient = energy + fold_energy, gradient + fold_gradient
+        return energy, gradient, rows
 
-    def _iterate(self, v, fixed_rows, folds, max_iterations, tolerance):
-        """Minimise over the stacked free coordinates ``v`` (2 f,); ``folds`` is a full (n, 2)
-        pose to count folded triangles in, or None."""
+    def _factorize(self, v, rows):
+        self._hessian.factorize(rows, None if self._folds is None else self._folds.terms(v))
+
+    def _iterate(self, v, fixed_rows, max_iterations, tolerance):
+        """Minimise over the stacked free coordinates ``v`` (2 f,)."""
         step_limit = tolerance * self.graph.size
         area = self._area
         direction = None
@@ -338,17 +351,15 @@ class Deformer:
         if isinstance(hessian, PaperMatrix):
             newton_limit = 0
         if area is not None:
-            hessian.factorize((fixed_rows + self._free_block @ v).reshape(2, -1))
+            self._factorize(v, (fixed_rows + self._free_block @ v).reshape(2, -1))
             direction = hessian.solve(area.jacobian(v))
             area.restore(v, direction)
-        energy, residual, rows = self._evaluate(v, fixed_rows)
+        energy, gradient, rows = self._evaluate(v, fixed_rows)  # gradient: half the true one
         if area is None:
-            hessian.factorize(rows)
+            self._factorize(v, rows)
         newton_steps = 1 if newton_limit else 0
-        gradient = self._free_block_transpose @ residual  # half the true gradient
         history = deque(maxlen=HISTORY)
         solution = Solution(v)
-        self._folded = self._count_folded(v, folds) if folds is not None else 0
         for _ in range(max_iterations):
             search_gradient = gradient
             if area is not None:
@@ -365,7 +376,7 @@ class Deformer:
                 if area is not None:
                     step = self._tangent(step, v, direction)
                 slope = 2.0 * float(gradient @ step)
-            moved = self._line_search(v, fixed_rows, folds, energy, step, slope, direction)
+            moved = self._line_search(v, fixed_rows, energy, step, slope, direction)
             if moved is None:
                 # No decrease is possible: this is a minimum to rounding.
                 solution.iterations += 1
@@ -374,15 +385,14 @@ class Deformer:
                     solution.converged = True
                     break
                 continue
-            new_v, new_energy, new_residual, rows = moved
-            new_gradient = self._free_block_transpose @ new_residual
+            new_v, new_energy, new_gradient, rows = moved
             s = new_v - v
             largest = float(np.abs(s).max())
             solution.iterations += 1
             solution.energies.append(new_energy)
             refactor = newton_steps < newton_limit and largest > NEWTON_UNTIL * self.graph.size
             if refactor:
-                hessian.factorize(rows)
+                self._factorize(new_v, rows)
                 newton_steps += 1
                 history.clear()
             if area is not None:
@@ -418,11 +428,6 @@ class Deformer:
             z += (a - rho * float(y @ z)) * s
         return z
 
-    def _count_folded(self, v, positions):
-        """Triangles turned clockwise (folded over) with the free points at ``v``."""
-        positions[self.free] = v.reshape(2, -1).T
-        return int(np.count_nonzero(triangle_cross(positions, self.graph.triangles) <= 0.0))
-
     def _multiplier(self, gradient, v, direction):
         """Least-squares Lagrange multiplier of the area constraint in the metric of H."""
         along = float(self._area.jacobian(v) @ direction)
@@ -438,18 +443,17 @@ class Deformer:
             return step
         return step - direction * (float(jacobian @ step) / along)
 
-    def _line_search(self, v, fixed_rows, folds, energy, step, slope, direction):
+    def _line_search(self, v, fixed_rows, energy, step, slope, direction):
         """Backtrack from the full step until the energy decreases enough (Armijo)."""
         if slope >= 0.0:
             return None
         alpha = 1.0
         for _ in range(MAX_HALVINGS):
             trial = v + alpha * step
-            if (self._area is None or self._area.restore(trial, direction)) and (
-                    folds is None or self._count_folded(trial, folds) <= self._folded):
-                trial_energy, residual, rows = self._evaluate(trial, fixed_rows)
+            if self._area is None or self._area.restore(trial, direction):
+                trial_energy, gradient, rows = self._evaluate(trial, fixed_rows)
                 if trial_energy <= energy + ARMIJO * alpha * slope:
-                    return trial, trial_energy, residual, rows
+                    return trial, trial_energy, gradient, rows
             alpha *= 0.5
         return None
 
@@ -463,7 +467,7 @@ class _CoarseStart:
     then only fix local detail, which the constant matrix does well.
     """
 
-    def __init__(self, graph, handles, weights, preserve_area):
+    def __init__(self, graph, handles, weights, preserve_area, prevent_flips):
         from .binding import bind
         from .graph import build_graph
 
@@ -473,7 +477,8 @@ class _CoarseStart:
         _, nearest = cKDTree(self.graph.points).query(rest)
         self.coarse_handles, self.first = np.unique(nearest, return_index=True)
         self.offset = self.graph.points[self.coarse_handles] - rest[self.first]
-        self.deformer = Deformer(self.graph, self.coarse_handles, weights, preserve_area, newton=True)
+        self.deformer = Deformer(self.graph, self.coarse_handles, weights, preserve_area, newton=True,
+                                 prevent_flips=prevent_flips)
         self.binding = bind(self.graph, graph.points)
 
     def start(self, targets):

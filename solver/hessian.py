@@ -43,7 +43,7 @@ class Hessian:
     Unknowns are stacked ``[x of free points; y of free points]`` (length ``2 f``).
     """
 
-    def __init__(self, energy, free):
+    def __init__(self, energy, free, triangles=None):
         self.energy = energy
         n = energy.n
         f = len(free)
@@ -57,15 +57,20 @@ class Hessian:
         stiffness = (free_columns.T @ free_columns).tocsc()
         base = block_diag([stiffness, stiffness], format="csc")
 
-        # Points each low-rank term touches, as (term, corner) arrays of point indices.
-        self._edge_points = energy.length_edges                     # (e, 2)
-        self._group_points = energy.curve_points                    # (m, 3): here, before, after
-        # Each term contributes c u u^T on its points. Its k x k products are laid out flat, edge
-        # terms first (4 x 4 each), then curve groups (6 x 6); a constant sparse matrix sums the
+        # Points each low-rank term touches, as (term, corner) arrays of point indices: inner
+        # edges (e, 2), curve groups (m, 3: here, before, after) and, with the fold penalty
+        # (solver.folds), triangles (t, 3).
+        families = [energy.length_edges, energy.curve_points]
+        if triangles is not None:
+            families.append(triangles)
+        self._families = len(families)
+        self._no_folds = np.zeros(36 * len(triangles)) if triangles is not None else None
+        # Each term contributes c u u^T on its points. Its k x k products are laid out flat, family
+        # by family (4 x 4 for an edge, 6 x 6 for the others); a constant sparse matrix sums the
         # products that land on each stored upper-triangle entry, so assembly is one mat-vec.
         rows, cols, flat_index = [], [], []
         offset = 0
-        for points in (self._edge_points, self._group_points):
+        for points in families:
             stacked = np.concatenate([slot[points], slot[points] + f], axis=1)
             stacked[np.concatenate([slot[points], slot[points]], axis=1) < 0] = -1
             count, k = stacked.shape
@@ -107,13 +112,16 @@ class Hessian:
         self._group_base_x = np.ascontiguousarray(corners[..., 0])
         self._group_base_y = np.ascontiguousarray(corners[..., 1])
 
-    def matrix(self, rows):
+    def matrix(self, rows, fold_terms=None):
         """Upper triangle of the projected Hessian (halved) at the pose with ``A V = rows``.
 
         Parameters
         ----------
         rows : (2, r) float ndarray
             ``A @ V``, coordinate-major.
+        fold_terms : tuple, optional
+            :meth:`solver.folds.FoldPenalty.terms` at the same pose, for a Hessian built with
+            ``triangles``; None when no triangle is squeezed.
 
         Returns
         -------
@@ -122,6 +130,10 @@ class Hessian:
         """
         products = [(c[:, None, None] * u[:, :, None] * u[:, None, :]).ravel()
                     for c, u in (self._edge_terms(rows), self._group_terms(rows))]
+        if self._families == 3:
+            products.append(self._no_folds if fold_terms is None else
+                            (fold_terms[0][:, None, None] * fold_terms[1][:, :, None]
+                             * fold_terms[1][:, None, :]).ravel())
         # The pattern never changes: overwrite the values of one matrix rather than building one.
         np.subtract(self._base, self._gather @ np.concatenate(products), out=self._upper.data)
         return self._upper
@@ -154,10 +166,10 @@ class Hessian:
         u[:, 3:] = sin[:, None] * base_x + cos[:, None] * base_y
         return coefficient, u
 
-    def factorize(self, rows):
+    def factorize(self, rows, fold_terms=None):
         """Factor the Hessian at the pose with ``A V = rows`` ((2, r)); the symbolic analysis
         is done only the first time."""
-        upper = self.matrix(rows)
+        upper = self.matrix(rows, fold_terms)
         if self._factor is None:
             self._factor = qdldl.Solver(upper, upper=True)
         else:
@@ -191,7 +203,7 @@ class PaperMatrix:
         stiffness = (columns.T @ columns).tocsc()
         self._factor = qdldl.Solver(triu(stiffness, format="csc"), upper=True)
 
-    def factorize(self, rows):
+    def factorize(self, rows, fold_terms=None):
         """Nothing to do: the matrix does not depend on the pose."""
 
     def solve(self, rhs):

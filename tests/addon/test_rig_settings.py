@@ -14,7 +14,7 @@ def test_prevent_folds_reaches_the_deformer_and_reposes(addon):
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
     checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
-    assert rig.get(obj).deformer.prevent_flips is False
-    obj.shapedeform.prevent_flips = True
+    assert rig.get(obj).deformer.prevent_flips is True  # on by default
+    obj.shapedeform.prevent_flips = False
     bpy.context.view_layer.update()
-    assert rig.get(obj).deformer.prevent_flips is True
+    assert rig.get(obj).deformer.prevent_flips is False

@@ -249,20 +249,75 @@ def test_weights_that_leave_points_free_are_refused(horse_graph, horse_drag):
     assert np.all(np.isfinite(pose.positions))
 
 
-def test_prevent_flips_keeps_a_large_turn_unfolded():
-    """Turning the top of a 'B' by 90 degrees folds triangles at the paper's minimum; with
-    prevent_flips the pose stays unfolded and the energy still falls."""
+def _turned_b(lattice=450):
+    """The top of a 'B' turned 90 degrees about its left side, the bottom pinned."""
     rings = glyph_rings("B")
-    graph = solver.build_graph(rings, spacing=np.sqrt(solver.shapes.shape_geometry(rings).area / 450))
+    graph = solver.build_graph(rings, spacing=np.sqrt(solver.shapes.shape_geometry(rings).area / lattice))
     low, high = graph.points.min(axis=0), graph.points.max(axis=0)
     unit = (graph.points - low) / (high - low)
     bottom, top = np.flatnonzero(unit[:, 1] <= 0.04), np.flatnonzero(unit[:, 1] >= 0.96)
     pivot = low + np.array([0.05, 0.55]) * (high - low)
     turned = (graph.points[top] - pivot) @ rotation(np.pi / 2).T + pivot
-    handles, targets = np.concatenate([bottom, top]), np.concatenate([graph.points[bottom], turned])
-    plain = solver.Deformer(graph, handles).solve(targets)
+    return graph, np.concatenate([bottom, top]), np.concatenate([graph.points[bottom], turned])
+
+
+def test_prevent_flips_keeps_a_large_turn_unfolded():
+    """Turning the top of a 'B' by 90 degrees folds triangles at the paper's minimum; with
+    prevent_flips the pose has none, and costs little of the paper's energy to get there."""
+    graph, handles, targets = _turned_b()
+    deformer = solver.Deformer(graph, handles)
+    plain = deformer.solve(targets)
     guarded = solver.Deformer(graph, handles, prevent_flips=True).solve(targets)
     assert flipped(graph, plain.positions) > 0
     assert flipped(graph, guarded.positions) == 0
     assert np.all(np.diff(guarded.energies) <= 0.0)
     assert np.array_equal(guarded.positions[handles], targets)
+    paper_energy = deformer.energy.evaluate(guarded.positions)[0]
+    assert paper_energy <= 1.15 * plain.energies[-1]
+
+
+def test_prevent_flips_changes_nothing_where_nothing_folds(horse_graph, horse_drag):
+    """The penalty only acts on squeezed triangles: on a drag that folds none, the poses agree."""
+    handles, targets, _ = horse_drag
+    plain = solver.Deformer(horse_graph, handles).solve(targets)
+    guarded = solver.Deformer(horse_graph, handles, prevent_flips=True).solve(targets)
+    assert flipped(horse_graph, plain.positions) == 0
+    assert np.abs(guarded.positions - plain.positions).max() <= 1e-12 * horse_graph.size
+    assert guarded.energies == plain.energies
+
+
+def test_prevent_flips_with_exact_area_keeps_holes_open():
+    """Stretching a 'B' with its area held squeezes the holes' walls until they fold; with
+    prevent_flips they stay open and the area is still exact."""
+    rings = glyph_rings("B")
+    graph = solver.build_graph(rings, spacing=np.sqrt(solver.shapes.shape_geometry(rings).area / 3900))
+    low, high = graph.points.min(axis=0), graph.points.max(axis=0)
+    bottom = np.flatnonzero(graph.points[:, 1] <= low[1] + 0.04 * (high - low)[1])
+    top = np.flatnonzero(graph.points[:, 1] >= high[1] - 0.04 * (high - low)[1])
+    handles = np.concatenate([bottom, top])
+    targets = graph.points[handles] + np.where(np.isin(handles, top)[:, None], [0.0, 0.4 * (high - low)[1]], 0.0)
+    plain = solver.Deformer(graph, handles, preserve_area=True).solve(targets)
+    guarded = solver.Deformer(graph, handles, preserve_area=True, prevent_flips=True).solve(targets)
+    assert flipped(graph, plain.positions) > 0
+    assert flipped(graph, guarded.positions) == 0
+    assert abs(graph.area(guarded.positions) / graph.area() - 1.0) <= 1e-9
+
+
+def test_fold_penalty_gradient_matches_finite_differences():
+    from solver.folds import FoldPenalty
+
+    graph, handles, targets = _turned_b()
+    deformer = solver.Deformer(graph, handles)
+    folded = deformer.solve(targets).positions
+    free, fixed = deformer.free, np.setdiff1d(np.arange(graph.n), deformer.free)
+    penalty = FoldPenalty(graph, free, fixed)
+    penalty.hold(folded[fixed])
+    v = folded[free].T.ravel()
+    energy, half_gradient = penalty.evaluate(v)
+    assert energy > 0.0
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        direction = rng.normal(size=v.shape)
+        step = 1e-6 * graph.size / np.abs(direction).max()
+        slope = (penalty.evaluate(v + step * direction)[0] - penalty.evaluate(v - step * direction)[0]) / (2 * step)
+        assert slope == pytest.approx(2.0 * half_gradient @ direction, rel=1e-4, abs=1e-9 * energy)

@@ -1,0 +1,122 @@
+"""A penalty that keeps triangles from folding over: an addition to the paper's energy.
+
+The paper's energy (equation 6) has minima with folded triangles in large bends, where a dragged
+region meets the rest: nothing in it measures orientation. With ``Deformer(prevent_flips=True)``
+each triangle of the graph whose signed area ``a`` falls below ``FOLD_THRESHOLD`` times its rest
+area ``a0`` adds ``FOLD_WEIGHT * a0 * (FOLD_THRESHOLD - a / a0)^2``. Above the threshold the term
+is zero, so a pose that squeezes no triangle that far is a minimum of the paper's energy
+unchanged; in big bends it holds the folds open at a small price in energy.
+
+The weight per triangle scales with its area, as the paper's rows scale with their edges, so
+the balance between the two does not depend on the graph's density.
+
+Areas are quadratic in the positions: with a triangle's edge vectors ``e1 = b - a`` and
+``e2 = c - a`` (rows of a constant matrix, like ``A``'s), ``area = (e1 x e2) / 2``, so values and
+gradients are sparse mat-vecs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import block_diag, coo_matrix
+
+from .triangulate import triangle_cross
+
+__all__ = ["FoldPenalty", "FOLD_THRESHOLD", "FOLD_WEIGHT"]
+
+# Triangles squeezed below this fraction of their rest area are pushed back open.
+FOLD_THRESHOLD = 0.1
+# Penalty weight, relative to the paper's terms (both are in squared lengths).
+FOLD_WEIGHT = 100.0
+
+
+class FoldPenalty:
+    """The fold penalty on the stacked free coordinates ``v = [x; y]`` of a deformer.
+
+    Parameters
+    ----------
+    graph : solver.Graph
+    free, fixed : (f,) and (c,) int ndarray
+        Free and fixed point indices, as the deformer splits them.
+    """
+
+    def __init__(self, graph, free, fixed):
+        triangles = graph.triangles
+        count = len(triangles)
+        ones = np.ones(count)
+        first, second = np.arange(count), count + np.arange(count)
+        # Rows 0..t-1: e1 = b - a; rows t..2t-1: e2 = c - a.
+        edges = coo_matrix((np.concatenate([ones, -ones, ones, -ones]),
+                            (np.concatenate([first, first, second, second]),
+                             np.concatenate([triangles[:, 1], triangles[:, 0], triangles[:, 2], triangles[:, 0]]))),
+                           shape=(2 * count, graph.n)).tocsc()
+        free_columns = edges[:, free]
+        self._free_block = block_diag([free_columns, free_columns], format="csr")
+        self._free_block_transpose = self._free_block.T.tocsr()
+        self._fixed_columns = edges[:, fixed].tocsr()
+        self._fixed_edges = np.zeros(4 * count)
+        self._zero_gradient = np.zeros(2 * len(free))
+        self._zero_gradient.flags.writeable = False
+        rest_area = 0.5 * triangle_cross(graph.points, triangles)
+        # FOLD_WEIGHT * a0 * (threshold - a / a0)^2 = scale * (floor - a)^2.
+        self._scale = FOLD_WEIGHT / np.where(rest_area > 0, rest_area, np.inf)
+        self._floor = FOLD_THRESHOLD * rest_area
+        self.triangles = triangles
+
+    def hold(self, fixed_positions):
+        """Take the fixed points' positions ``(c, 2)`` for the solve that follows."""
+        self._fixed_edges = (self._fixed_columns @ fixed_positions).T.ravel()
+
+    def _areas(self, v):
+        """Edge vectors ``(2, 2, t)`` (coordinate, edge, triangle) and signed areas ``(t,)``."""
+        edges = (self._fixed_edges + self._free_block @ v).reshape(2, 2, -1)
+        (x1, x2), (y1, y2) = edges
+        return edges, 0.5 * (x1 * y2 - y1 * x2)
+
+    def evaluate(self, v):
+        """The penalty and half its gradient.
+
+        Parameters
+        ----------
+        v : (2 f,) float ndarray
+
+        Returns
+        -------
+        energy : float
+        half_gradient : (2 f,) float64 ndarray
+        """
+        edges, area = self._areas(v)
+        gap = np.maximum(self._floor - area, 0.0)
+        if not gap.any():
+            return 0.0, self._zero_gradient
+        energy = float(np.sum(self._scale * gap * gap))
+        # Half of d energy / d area, then the area's derivatives by the two edges.
+        slope = -self._scale * gap
+        (x1, x2), (y1, y2) = edges
+        by_edge = np.stack([np.stack([0.5 * slope * y2, -0.5 * slope * y1]),
+                            np.stack([-0.5 * slope * x2, 0.5 * slope * x1])])
+        return energy, self._free_block_transpose @ by_edge.ravel()
+
+    def terms(self, v):
+        """Gauss-Newton terms of the penalty for :class:`~solver.hessian.Hessian`.
+
+        Returns
+        -------
+        (coefficient, u) or None
+            None where no triangle is squeezed (the penalty has no curvature there). Otherwise
+            ``coefficient`` (t,) is minus the penalty's scale where it is active, zero elsewhere
+            (the Hessian subtracts ``c u u^T``, and this term adds curvature), and ``u`` (t, 6)
+            is the area's gradient on ``[x_a, x_b, x_c, y_a, y_b, y_c]``.
+        """
+        edges, area = self._areas(v)
+        active = area < self._floor
+        if not active.any():
+            return None
+        coefficient = np.where(active, -self._scale, 0.0)
+        (x1, x2), (y1, y2) = edges
+        u = np.empty((len(area), 6))
+        u[:, 1], u[:, 4] = 0.5 * y2, -0.5 * x2      # d area / d b = d area / d e1
+        u[:, 2], u[:, 5] = -0.5 * y1, 0.5 * x1      # d area / d c = d area / d e2
+        u[:, 0] = -(u[:, 1] + u[:, 2])
+        u[:, 3] = -(u[:, 4] + u[:, 5])
+        return coefficient, u
