@@ -343,7 +343,8 @@ class Deformer:
 
     def _iterate(self, v, fixed_rows, max_iterations, tolerance):
         """Minimise over the stacked free coordinates ``v`` (2 f,)."""
-        step_limit = tolerance * self.graph.size
+        size = self.graph.size  # a bounding-box measure: computed once, not per iteration
+        step_limit = tolerance * size
         area = self._area
         direction = None
         hessian = self._hessian
@@ -390,7 +391,7 @@ class Deformer:
             largest = float(np.abs(s).max())
             solution.iterations += 1
             solution.energies.append(new_energy)
-            refactor = newton_steps < newton_limit and largest > NEWTON_UNTIL * self.graph.size
+            refactor = newton_steps < newton_limit and largest > NEWTON_UNTIL * size
             if refactor:
                 self._factorize(new_v, rows)
                 newton_steps += 1
