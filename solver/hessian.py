@@ -65,22 +65,33 @@ class Hessian:
             families.append(triangles)
         self._families = len(families)
         self._no_folds = np.zeros(36 * len(triangles)) if triangles is not None else None
-        # Each term contributes c u u^T on its points. Its k x k products are laid out flat, family
-        # by family (4 x 4 for an edge, 6 x 6 for the others); a constant sparse matrix sums the
-        # products that land on each stored upper-triangle entry, so assembly is one mat-vec.
-        rows, cols, flat_index = [], [], []
+        # Each term contributes c u u^T on its points. The distinct products are laid out flat,
+        # family by family; a constant sparse matrix sums (with signs) the products that land on
+        # each stored upper-triangle entry, so assembly is one mat-vec. An edge's u is
+        # [a, -a, b, -b] on [x_i, x_j, y_i, y_j], so its 16 products are +-c a^2, +-c a b, +-c b^2
+        # (3 stored); the other families store all k x k products.
+        rows, cols, flat_index, signs = [], [], [], []
         offset = 0
-        for points in families:
+        for family, points in enumerate(families):
             stacked = np.concatenate([slot[points], slot[points] + f], axis=1)
             stacked[np.concatenate([slot[points], slot[points]], axis=1) < 0] = -1
             count, k = stacked.shape
             rows.append(np.repeat(stacked, k, axis=1).ravel())
             cols.append(np.tile(stacked, (1, k)).ravel())
-            flat_index.append(offset + np.arange(count * k * k))
-            offset += count * k * k
+            if family == 0:
+                axis, sign = np.array([0, 0, 1, 1]), np.array([1.0, -1.0, 1.0, -1.0])
+                kind = (axis[:, None] + axis[None, :]).ravel()           # 0: a a, 1: a b, 2: b b
+                flat_index.append(offset + 3 * np.repeat(np.arange(count), k * k) + np.tile(kind, count))
+                signs.append(np.tile(np.outer(sign, sign).ravel(), count))
+                offset += 3 * count
+            else:
+                flat_index.append(offset + np.arange(count * k * k))
+                signs.append(np.ones(count * k * k))
+                offset += count * k * k
         rows, cols = np.concatenate(rows), np.concatenate(cols)
         keep = (rows >= 0) & (cols >= 0) & (rows <= cols)
-        rows, cols, flat_index = rows[keep], cols[keep], np.concatenate(flat_index)[keep]
+        rows, cols = rows[keep], cols[keep]
+        flat_index, signs = np.concatenate(flat_index)[keep], np.concatenate(signs)[keep]
         upper = triu(base, format="coo")
         # Build the pattern from coordinates only: adding sparse matrices is not safe here, as
         # scipy's sum assumes canonical (sorted, duplicate-free) operands and triu's are not.
@@ -95,8 +106,7 @@ class Hessian:
         locate = lambda r, c: np.searchsorted(keys, r + shape.shape[0] * c)
         self._base = np.bincount(locate(upper.row.astype(np.int64), upper.col.astype(np.int64)),
                                  weights=upper.data, minlength=shape.nnz)
-        self._gather = csr_matrix((np.ones(len(rows)), (locate(rows, cols), flat_index)),
-                                  shape=(shape.nnz, offset))
+        self._gather = csr_matrix((signs, (locate(rows, cols), flat_index)), shape=(shape.nnz, offset))
         self._upper = csc_matrix((self._base.copy(), shape.indices, shape.indptr), shape=shape.shape)
         self._factor = None
 
@@ -128,8 +138,11 @@ class Hessian:
         (2 f, 2 f) scipy.sparse.csc_matrix
             Reused by the next call: copy it to keep it.
         """
-        products = [(c[:, None, None] * u[:, :, None] * u[:, None, :]).ravel()
-                    for c, u in (self._edge_terms(rows), self._group_terms(rows))]
+        c, a, b = self._edge_terms(rows)
+        ca = c * a
+        products = [np.stack([ca * a, ca * b, c * b * b], axis=1).ravel()]
+        c, u = self._group_terms(rows)
+        products.append((c[:, None, None] * u[:, :, None] * u[:, None, :]).ravel())
         if self._families == 3:
             products.append(self._no_folds if fold_terms is None else
                             (fold_terms[0][:, None, None] * fold_terms[1][:, :, None]
@@ -139,20 +152,16 @@ class Hessian:
         return self._upper
 
     def _edge_terms(self, rows):
-        """Coefficients (e,) and u vectors (e, 4) laid out as [x_i, x_j, y_i, y_j]."""
+        """Coefficients (e,) and the scaled unit normal ``(a, b)`` of each edge: its u vector is
+        ``[a, -a, b, -b]`` on ``[x_i, x_j, y_i, y_j]``."""
         energy = self.energy
         edge_x, edge_y = rows[0, energy.length_rows], rows[1, energy.length_rows]
         length = np.hypot(edge_x, edge_y)
         ok = length > 0
         inverse = np.divide(1.0, length, out=np.zeros_like(length), where=ok)
         coefficient = np.minimum(1.0 - CLAMP, energy.rest_length * inverse)  # 0 where collapsed
-        s = energy.edge_scale
-        u = np.empty((len(length), 4))
-        u[:, 0] = -s * edge_y * inverse  # the edge's unit normal, scaled
-        u[:, 2] = s * edge_x * inverse
-        u[:, 1] = -u[:, 0]
-        u[:, 3] = -u[:, 2]
-        return coefficient, u
+        inverse *= energy.edge_scale
+        return coefficient, -edge_y * inverse, edge_x * inverse
 
     def _group_terms(self, rows):
         """Coefficients (m,) and u vectors (m, 6) laid out as [x_here, x_before, x_after, y_...]."""

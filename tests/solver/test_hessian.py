@@ -1,0 +1,65 @@
+"""The Newton matrix: the energy's true Hessian wherever its projection is inactive."""
+
+import numpy as np
+
+import solver
+from conftest import glyph_rings
+
+
+def _stretched(prevent_flips):
+    """A 'B' scaled up by 1.5 plus a little noise: every edge is stretched and every curve
+    group's fit is below its rest norm, so no coefficient of the Newton matrix is clamped."""
+    graph = solver.build_graph(glyph_rings("B"))
+    handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
+    deformer = solver.Deformer(graph, handles, prevent_flips=prevent_flips)
+    rng = np.random.default_rng(7)
+    pose = 1.5 * graph.points + 1e-3 * graph.size * rng.normal(size=graph.points.shape)
+    fixed_rows = (deformer._fixed_columns @ pose[deformer._fixed]).T.ravel()
+    return graph, deformer, pose, fixed_rows, rng
+
+
+def test_newton_matrix_matches_finite_differences_of_the_gradient():
+    graph, deformer, pose, fixed_rows, rng = _stretched(prevent_flips=False)
+    v = pose[deformer.free].T.ravel()
+    rows = deformer._evaluate(v, fixed_rows)[2]
+    upper = deformer._hessian.matrix(rows).toarray()
+    newton = upper + np.triu(upper, 1).T  # the halved Hessian, as the gradient is halved
+    step = 1e-6 * graph.size
+    for _ in range(4):
+        direction = rng.normal(size=v.shape)
+        ahead = deformer._evaluate(v + step * direction, fixed_rows)[1]
+        behind = deformer._evaluate(v - step * direction, fixed_rows)[1]
+        exact = newton @ direction
+        assert np.abs((ahead - behind) / (2 * step) - exact).max() <= 1e-6 * np.abs(exact).max()
+
+
+def test_fold_terms_add_the_penalty_gauss_newton_matrix():
+    """With a triangle squeezed below the fold threshold, the Newton matrix gains exactly
+    ``scale * grad(area) grad(area)^T`` for it (the penalty's Gauss-Newton part, halved)."""
+    from solver.folds import FOLD_WEIGHT
+
+    graph, deformer, pose, _, _ = _stretched(prevent_flips=True)
+    inner = graph.triangles[np.isin(graph.triangles, deformer.free).all(axis=1)][0]
+    a, b, c = inner
+    pose[c] = pose[a] + 0.02 * (pose[c] - pose[a]) + 0.5 * (pose[b] - pose[a])
+    folds = deformer._folds
+    folds.hold(pose[deformer._fixed])
+    v = pose[deformer.free].T.ravel()
+    fixed_rows = (deformer._fixed_columns @ pose[deformer._fixed]).T.ravel()
+    rows = deformer._evaluate(v, fixed_rows)[2]
+    terms = folds.terms(v)
+    assert terms is not None and np.count_nonzero(terms[0]) >= 1
+    added = deformer._hessian.matrix(rows, terms).toarray() - deformer._hessian.matrix(rows, None).toarray()
+    expected = np.zeros_like(added)
+    step = 1e-7 * graph.size
+    rest_area = 0.5 * solver.triangulate.triangle_cross(graph.points, graph.triangles)
+    for t in np.flatnonzero(terms[0]):
+        gradient = np.zeros_like(v)
+        for k in range(len(v)):  # the triangle's area gradient, by central differences
+            if not np.isin(k % len(deformer.free), np.searchsorted(deformer.free, graph.triangles[t])):
+                continue
+            e = np.zeros_like(v)
+            e[k] = step
+            gradient[k] = (folds._areas(v + e)[1][t] - folds._areas(v - e)[1][t]) / (2 * step)
+        expected += FOLD_WEIGHT / rest_area[t] * np.outer(gradient, gradient)
+    assert np.abs(added - np.triu(expected)).max() <= 1e-6 * np.abs(expected).max()
