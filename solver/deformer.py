@@ -252,8 +252,8 @@ class Deformer:
                 raise ValueError(f"initial must have shape {rest.shape}, got {positions.shape}")
             if not np.all(np.isfinite(positions)):
                 raise ValueError("initial has non-finite coordinates (NaN or inf)")
-        else:
-            positions = _rigid_fit(rest[self.handles], targets).apply(rest)
+        else:  # every free point is set below; fixed ones are handles or resting islands
+            positions = rest.copy()
         positions[self._resting] = rest[self._resting]
         positions[self.handles] = targets
         if initial is None and len(self.free):
@@ -287,8 +287,9 @@ class Deformer:
             Stop once no point moves more than ``tolerance * graph.size`` in an iteration.
             ``0.0`` runs exactly ``max_iterations``. Default ``DEFAULT_TOLERANCE``.
         initial : (n, 2) array_like, optional
-            Warm start. By default the rest shape moved rigidly to best fit the targets, so the
-            result depends on the targets alone.
+            Warm start. By default the as-similar-as-possible pose for the targets (for large
+            graphs, the pose of a coarse copy of the shape), so the result depends on the
+            targets alone.
 
         Returns
         -------
@@ -485,29 +486,6 @@ class _CoarseStart:
     def start(self, targets):
         coarse = self.deformer.solve(targets[self.first] + self.offset)
         return self.binding.apply(coarse.positions)
-
-
-@dataclass
-class _RigidMotion:
-    rotation: np.ndarray
-    source_centre: np.ndarray
-    target_centre: np.ndarray
-
-    def apply(self, points):
-        return (points - self.source_centre) @ self.rotation.T + self.target_centre
-
-
-def _rigid_fit(source, target):
-    """Rotation and translation taking ``source`` points closest to ``target`` (2D Procrustes)."""
-    if len(source) == 0:
-        return _RigidMotion(np.eye(2), np.zeros(2), np.zeros(2))
-    source_centre, target_centre = source.mean(axis=0), target.mean(axis=0)
-    p, q = source - source_centre, target - target_centre
-    cos = float(np.sum(p * q))
-    sin = float(np.sum(p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]))
-    angle = np.arctan2(sin, cos) if (cos or sin) else 0.0
-    c, s = np.cos(angle), np.sin(angle)
-    return _RigidMotion(np.array([[c, -s], [s, c]]), source_centre, target_centre)
 
 
 def _diagonal_scale(matrix):
