@@ -236,9 +236,11 @@ class Deformer:
             self._similarity_fixed = similarity[:, self._stacked_fixed].tocsr()
             self._similarity_free_transpose = similarity_free.T.tocsr()
             normal = (self._similarity_free_transpose @ similarity_free).tocsc()
-            # Free points touching no triangle would make this singular; a tiny diagonal keeps
-            # them where the rigid fit put them.
-            normal = normal + 1e-12 * _diagonal_scale(normal) * identity(normal.shape[0], format="csc")
+            # Free points touching no triangle would make this singular; a tiny pull towards
+            # their rest positions keeps them there and changes nothing else measurably.
+            tiny = 1e-12 * _diagonal_scale(normal)
+            normal = normal + tiny * identity(normal.shape[0], format="csc")
+            self._similarity_rest_pull = tiny * graph.points[self.free].T.ravel()
             self._similarity_factor = qdldl.Solver(triu(normal, format="csc"), upper=True)
         self._area = _AreaConstraint(graph, self.free, self._fixed) if self.preserve_area else None
         if self._area is not None and not np.isin(graph.boundary, self.free).any():
@@ -266,8 +268,9 @@ class Deformer:
     def _similar_start(self, positions):
         """The as-similar-as-possible pose for the current fixed points (one linear solve)."""
         stacked = np.concatenate([positions[:, 0], positions[:, 1]])
-        rhs = -(self._similarity_free_transpose @ (self._similarity_fixed @ stacked[self._stacked_fixed]))
-        free = self._similarity_factor.solve(np.ascontiguousarray(rhs))
+        rhs = self._similarity_rest_pull - self._similarity_free_transpose @ (
+            self._similarity_fixed @ stacked[self._stacked_fixed])
+        free = self._similarity_factor.solve(rhs)
         k = len(self.free)
         positions = positions.copy()
         positions[self.free, 0] = free[:k]

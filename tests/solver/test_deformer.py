@@ -213,6 +213,25 @@ def test_a_mesh_can_be_its_own_graph():
     assert flipped(graph, pose.positions) == 0
 
 
+def test_a_point_in_no_triangle_starts_at_rest_and_stays_finite():
+    """A user's mesh may carry a loose vertex hung on edges only: the similarity start has no
+    row for it, so it starts from where it rests rather than the origin."""
+    x, y = np.meshgrid(np.arange(4.0), np.arange(4.0))
+    points = np.concatenate([np.stack([x.ravel(), y.ravel()], axis=1), [[1.5, 1.4]]])
+    index = np.arange(16).reshape(4, 4)
+    edges = np.concatenate([np.stack([index[:, :-1].ravel(), index[:, 1:].ravel()], 1),
+                            np.stack([index[:-1].ravel(), index[1:].ravel()], 1), [[5, 16], [16, 10]]])
+    loop = np.concatenate([index[0], index[1:, -1], index[-1, ::-1][1:], index[::-1, 0][1:-1]])
+    grid = solver.Graph(points[:16], edges[:-2], [loop])
+    graph = solver.Graph(points, edges, [loop], triangles=grid.triangles)
+    handles = index[:, 0]
+    deformer = solver.Deformer(graph, handles)
+    start = deformer.solve(points[handles], max_iterations=0).positions
+    assert np.abs(start[16] - points[16]).max() <= 1e-6
+    pose = deformer.solve(points[handles] + [0.0, 1.0])
+    assert np.all(np.isfinite(pose.positions)) and pose.converged
+
+
 def test_large_graph_path_converges_from_a_coarse_start(horse_graph, horse_drag, monkeypatch):
     """Above NEWTON_MAX_POINTS the paper's constant matrix is iterated from a coarse solve,
     never refactorised; exercised here on the horse by lowering the threshold."""
