@@ -12,9 +12,13 @@ So ``H = [K 0; 0 K] - sum_k c_k u_k u_k^T`` on the stacked free coordinates ``[x
 ``u_k = A^T w_k`` touching two points (edges) or three (curve groups). Clamping ``c_k`` below 1
 keeps ``H`` positive definite (projected Newton): ``W = I - c w w^T`` is then positive per block.
 
+With the fold penalty of :mod:`solver.folds`, each squeezed triangle adds its Gauss-Newton term
+``s g g^T`` (``g`` the gradient of its area): a third family with negative ``c_k``.
+
 ``K`` alone is what the paper's iteration (9) inverts: it treats turning an edge as stiff, which
 is why free limbs converge so slowly with it. This matrix knows better, at the price of a
-numeric refactorisation; the symbolic analysis is done once per handle set.
+numeric refactorisation; the symbolic analysis is done once per handle set
+(``benchmarks/refactor_free.py`` measures the ways around refactorising).
 """
 
 from __future__ import annotations
