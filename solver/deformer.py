@@ -413,7 +413,9 @@ class Deformer:
             v, energy, gradient = new_v, new_energy, new_gradient
             if area is not None:
                 direction = new_direction
-            if tolerance > 0.0 and largest <= step_limit:
+            # Converged when the step taken and the step proposed are both small: a step that
+            # the line search had to shorten says nothing about being near the minimum.
+            if tolerance > 0.0 and max(largest, float(np.abs(step).max())) <= step_limit:
                 solution.converged = True
                 break
         solution.positions = v

@@ -322,6 +322,25 @@ def test_prevent_flips_with_exact_area_keeps_holes_open():
     assert abs(graph.area(guarded.positions) / graph.area() - 1.0) <= 1e-9
 
 
+def test_a_shortened_step_is_not_taken_for_convergence():
+    """Frame 24 of 30 of a linear drag that turns the top of a 'B' (the chord squeezes it):
+    with the fold penalty the line search shortens steps for a while, and a short step taken
+    then once stopped the solve 3e-3 of the size away from the minimum."""
+    graph = solver.build_graph(glyph_rings("B"))
+    low, high = graph.points.min(axis=0), graph.points.max(axis=0)
+    unit = (graph.points - low) / (high - low)
+    bottom, top = np.flatnonzero(unit[:, 1] <= 0.04), np.flatnonzero(unit[:, 1] >= 0.96)
+    pivot = low + np.array([0.05, 0.55]) * (high - low)
+    turned = (graph.points[top] - pivot) @ rotation(np.pi / 2).T + pivot
+    handles = np.concatenate([bottom, top])
+    targets = np.concatenate([graph.points[bottom], graph.points[top] + 0.8 * (turned - graph.points[top])])
+    deformer = solver.Deformer(graph, handles, prevent_flips=True)
+    converged = deformer.solve(targets, max_iterations=300, tolerance=0.0)
+    pose = deformer.solve(targets)
+    assert pose.converged
+    assert np.abs(pose.positions - converged.positions).max() <= 1e-3 * graph.size
+
+
 def test_fold_penalty_gradient_matches_finite_differences():
     from solver.folds import FoldPenalty
 
