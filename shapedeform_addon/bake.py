@@ -313,7 +313,7 @@ class Bake:
         self.scene.frame_set(frame)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         for obj in self.objects:
-            posed = rig.pose(obj, depsgraph)  # explicitly: a bake does not rely on the handlers
+            posed = rig.pose(obj, depsgraph, final=True)  # explicitly: a bake does not rely on the handlers
             self.captured[obj.name].append(_CAPTURE[obj.shapedeform.kind](obj, posed))
         self.done += 1
         return self.done == self.total

@@ -51,8 +51,12 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
                               default=1.0, min=0.0, soft_max=10.0, update=_settings_changed)
     weight_edge: FloatProperty(name="Edge Length", description="Weight of the edge length term",
                                default=1.0, min=0.0, soft_max=10.0, update=_settings_changed)
-    iterations: IntProperty(name="Iterations", description="Most solver iterations per update",
+    iterations: IntProperty(name="Viewport", description="Most solver iterations per update while you work",
                             default=15, min=1, max=200, update=_settings_changed)
+    render_iterations: IntProperty(
+        name="Render", description="Most solver iterations when baking, rendering or running without a "
+                                   "window; solves that converge sooner stop sooner",
+        default=30, min=1, max=200, update=_settings_changed)
     graph_mode: EnumProperty(
         name="Graph", description="What the solver deforms",
         items=[("AUTO", "Automatic", "The mesh itself when it is small, an outline graph when it is dense"),

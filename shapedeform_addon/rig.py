@@ -15,6 +15,7 @@ What lives only in memory (:class:`Rig`, keyed by ``Object.session_uid``): the s
 deformer and binding, rebuilt lazily from the above after load, undo, or a settings change.
 """
 
+import bpy
 import numpy as np
 
 from .. import solver
@@ -128,8 +129,16 @@ def forget(obj=None):
         _cache.pop(obj.original.session_uid, None)
 
 
-def pose(obj, depsgraph=None):
+def final_quality():
+    """Whether solves are for keeps: baking, rendering, or Blender without a window."""
+    return bpy.app.background or bpy.app.is_job_running("RENDER")
+
+
+def pose(obj, depsgraph=None, final=None):
     """Solve for the handles' current transforms and write the result into ``obj``.
+
+    ``final`` picks the Render iteration budget over the Viewport one; by default it is
+    :func:`final_quality`.
 
     Raises
     ------
@@ -138,8 +147,10 @@ def pose(obj, depsgraph=None):
     """
     rig = get(obj)
     frames = rig.frames(obj, depsgraph)
+    settings = obj.shapedeform
+    final = final_quality() if final is None else final
     try:
-        positions = rig.solve(frames, obj.shapedeform.iterations)
+        positions = rig.solve(frames, settings.render_iterations if final else settings.iterations)
         points = rig.points(positions)
     except (ValueError, np.linalg.LinAlgError, FloatingPointError) as err:
         raise RigError(f"'{obj.name}': {err}") from None
