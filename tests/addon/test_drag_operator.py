@@ -14,7 +14,7 @@ from bpy_extras import anim_utils, view3d_utils
 from mathutils import Matrix
 
 import rig_checks as checks
-from test_rig_mesh import grid
+from test_rig_mesh import grid, rig_with_two_handles
 
 
 def viewport():
@@ -33,14 +33,6 @@ def event(kind, value, world=None, ctrl=False, view=None):
     if world is not None:
         x, y = view3d_utils.location_3d_to_region_2d(region, region_3d, world)
     return SimpleNamespace(type=kind, value=value, mouse_x=x, mouse_y=y, ctrl=ctrl)
-
-
-def rig_with_two_handles():
-    obj = grid()
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    left = checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
-    right = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
-    return obj, left, right
 
 
 def operator_stand_in(addon, obj):

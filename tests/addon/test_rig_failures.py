@@ -7,15 +7,11 @@ import bpy
 import numpy as np
 
 import rig_checks as checks
-from test_rig_mesh import grid
+from test_rig_mesh import rig_with_two_handles
 
 
 def test_a_handle_moved_to_nan_keeps_the_last_pose_and_reports(addon):
-    obj = grid()
-    bpy.context.view_layer.objects.active = obj
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
-    handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    obj, _, handle = rig_with_two_handles()
     handle.location.y += 0.4
     bpy.context.view_layer.update()
     good = checks.evaluated_mesh_points(obj)

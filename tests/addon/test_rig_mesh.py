@@ -22,6 +22,15 @@ def grid(name="Grid", x=12, y=6, turn=None):
     return obj
 
 
+def rig_with_two_handles():
+    """A bound grid with a handle near each end: (object, left handle, right handle)."""
+    obj = grid()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    left = checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    right = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    return obj, left, right
+
+
 TILTED = Matrix.Rotation(0.7, 4, Vector((1.0, 2.0, 0.5)).normalized())
 
 
@@ -104,10 +113,7 @@ def test_save_reopen_keeps_the_rig_working_and_unbind_is_exact(addon, tmp_path):
 
 
 def test_frame_change_poses_animated_handles(addon):
-    obj = grid()
-    bpy.ops.shapedeform.bind()
-    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
-    handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    obj, _, handle = rig_with_two_handles()
     scene = bpy.context.scene
     start = handle.location.copy()
     handle.keyframe_insert("location", frame=1)

@@ -4,17 +4,12 @@
 import bpy
 import numpy as np
 
-import rig_checks as checks
-from test_rig_mesh import grid
+from test_rig_mesh import rig_with_two_handles
 
 
 def test_prevent_folds_reaches_the_deformer_and_reposes(addon):
     rig = addon.shapedeform_addon.rig
-    obj = grid()
-    bpy.context.view_layer.objects.active = obj
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
-    checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    obj, _, _ = rig_with_two_handles()
     assert rig.get(obj).deformer.prevent_flips is True  # on by default
     obj.shapedeform.prevent_flips = False
     bpy.context.view_layer.update()
@@ -25,11 +20,7 @@ def test_viewport_and_render_iterations(addon):
     """Working in the viewport uses the Viewport budget; baking, rendering and Blender without
     a window use the Render one (headless here, so that is the default)."""
     rig = addon.shapedeform_addon.rig
-    obj = grid()
-    bpy.context.view_layer.objects.active = obj
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
-    moved = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    obj, _, moved = rig_with_two_handles()
     moved.location.z += 0.6
     moved.rotation_euler.y += 0.8
     obj.shapedeform.iterations = 1
