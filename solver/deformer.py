@@ -339,7 +339,8 @@ class Deformer:
         energy, gradient = float(residual @ residual), self._free_block_transpose @ residual
         if self._folds is not None:
             fold_energy, fold_gradient = self._folds.evaluate(v)
-            energy, gradient = energy + fold_energy, gradient + fold_gradient
+            if fold_gradient is not None:
+                energy, gradient = energy + fold_energy, gradient + fold_gradient
         return energy, gradient, rows
 
     def _factorize(self, v, rows):
@@ -359,6 +360,7 @@ class Deformer:
             self._factorize(v, (fixed_rows + self._free_block @ v).reshape(2, -1))
             direction = hessian.solve(area.jacobian(v))
             area.restore(v, direction)
+            jacobian = area.jacobian(v)  # kept with direction: both change only with v
         energy, gradient, rows = self._evaluate(v, fixed_rows)  # gradient: half the true one
         if area is None:
             self._factorize(v, rows)
@@ -369,17 +371,17 @@ class Deformer:
             search_gradient = gradient
             if area is not None:
                 # Along the constraint the energy's curvature is the Lagrangian's.
-                multiplier = self._multiplier(gradient, v, direction)
-                search_gradient = gradient - multiplier * area.jacobian(v)
+                multiplier = _multiplier(gradient, jacobian, direction)
+                search_gradient = gradient - multiplier * jacobian
             step = -self._two_loop(search_gradient, history)
             if area is not None:
-                step = self._tangent(step, v, direction)
+                step = _tangent(step, jacobian, direction)
             slope = 2.0 * float(gradient @ step)
             if slope >= 0.0 and history:
                 history.clear()
                 step = -hessian.solve(search_gradient)
                 if area is not None:
-                    step = self._tangent(step, v, direction)
+                    step = _tangent(step, jacobian, direction)
                 slope = 2.0 * float(gradient @ step)
             moved = self._line_search(v, fixed_rows, energy, step, slope, direction)
             if moved is None:
@@ -401,18 +403,19 @@ class Deformer:
                 newton_steps += 1
                 history.clear()
             if area is not None:
-                new_direction = hessian.solve(area.jacobian(new_v))
+                new_jacobian = area.jacobian(new_v)
+                new_direction = hessian.solve(new_jacobian)
             if not refactor:
                 y = new_gradient - gradient
                 if area is not None:
-                    multiplier = self._multiplier(new_gradient, new_v, new_direction)
-                    y -= multiplier * (area.jacobian(new_v) - area.jacobian(v))
+                    multiplier = _multiplier(new_gradient, new_jacobian, new_direction)
+                    y -= multiplier * (new_jacobian - jacobian)
                 sy = float(s @ y)
                 if sy > 1e-12 * np.sqrt(float(s @ s) * float(y @ y)):
                     history.append((s, y, 1.0 / sy))
             v, energy, gradient = new_v, new_energy, new_gradient
             if area is not None:
-                direction = new_direction
+                direction, jacobian = new_direction, new_jacobian
             # Converged when the step taken and the step proposed are both small: a step that
             # the line search had to shorten says nothing about being near the minimum.
             if tolerance > 0.0 and max(largest, float(np.abs(step).max())) <= step_limit:
@@ -434,21 +437,6 @@ class Deformer:
         for (s, y, rho), a in zip(history, reversed(coefficients)):
             z += (a - rho * float(y @ z)) * s
         return z
-
-    def _multiplier(self, gradient, v, direction):
-        """Least-squares Lagrange multiplier of the area constraint in the metric of H."""
-        along = float(self._area.jacobian(v) @ direction)
-        if along <= 0.0:
-            return 0.0
-        return float(gradient @ direction) / along
-
-    def _tangent(self, step, v, direction):
-        """Remove the part of a step that changes the area to first order."""
-        jacobian = self._area.jacobian(v)
-        along = float(jacobian @ direction)
-        if along <= 0.0:
-            return step
-        return step - direction * (float(jacobian @ step) / along)
 
     def _line_search(self, v, fixed_rows, energy, step, slope, direction):
         """Backtrack from the full step until the energy decreases enough (Armijo)."""
@@ -491,6 +479,23 @@ class _CoarseStart:
     def start(self, targets):
         coarse = self.deformer.solve(targets[self.first] + self.offset)
         return self.binding.apply(coarse.positions)
+
+
+def _multiplier(gradient, jacobian, direction):
+    """Least-squares Lagrange multiplier of the area constraint in the metric of H
+    (``direction = H^-1 jacobian``)."""
+    along = float(jacobian @ direction)
+    if along <= 0.0:
+        return 0.0
+    return float(gradient @ direction) / along
+
+
+def _tangent(step, jacobian, direction):
+    """Remove the part of a step that changes the area to first order."""
+    along = float(jacobian @ direction)
+    if along <= 0.0:
+        return step
+    return step - direction * (float(jacobian @ step) / along)
 
 
 def _diagonal_scale(matrix):

@@ -55,8 +55,6 @@ class FoldPenalty:
         self._free_block_transpose = self._free_block.T.tocsr()
         self._fixed_columns = edges[:, fixed].tocsr()
         self._fixed_edges = np.zeros(4 * count)
-        self._zero_gradient = np.zeros(2 * len(free))
-        self._zero_gradient.flags.writeable = False
         rest_area = 0.5 * triangle_cross(graph.points, triangles)
         # FOLD_WEIGHT * a0 * (threshold - a / a0)^2 = scale * (floor - a)^2.
         self._scale = FOLD_WEIGHT / np.where(rest_area > 0, rest_area, np.inf)
@@ -83,12 +81,13 @@ class FoldPenalty:
         Returns
         -------
         energy : float
-        half_gradient : (2 f,) float64 ndarray
+        half_gradient : (2 f,) float64 ndarray, or None
+            None when no triangle is squeezed (energy and gradient are zero).
         """
         edges, area = self._areas(v)
         gap = np.maximum(self._floor - area, 0.0)
         if not gap.any():
-            return 0.0, self._zero_gradient
+            return 0.0, None
         energy = float(np.sum(self._scale * gap * gap))
         # Half of d energy / d area, then the area's derivatives by the two edges.
         slope = -self._scale * gap
