@@ -192,6 +192,7 @@ class Deformer:
             raise ValueError("a point is given as a handle twice")
         self.handles = handles
         self.energy = Energy(graph, weights)
+        self._size = graph.size  # a bounding-box measure: once, not per solve
         self.preserve_area = bool(preserve_area)
 
         fixed = np.zeros(graph.n, dtype=bool)
@@ -332,23 +333,27 @@ class Deformer:
         return solution
 
     def _evaluate(self, v, fixed_rows):
-        """Energy, half its gradient ``(2 f,)`` and rows ``A V`` ``(2, r)`` at free coordinates
-        ``v``."""
-        rows = (fixed_rows + self._free_block @ v).reshape(2, -1)
-        residual = self.energy.residual(rows).ravel()
+        """Energy, half its gradient ``(2 f,)``, and the pose (rows ``A V`` ``(2, r)`` and the
+        local fit) at free coordinates ``v``."""
+        rows = self._free_block @ v
+        rows += fixed_rows
+        rows = rows.reshape(2, -1)
+        residual, fit = self.energy.local_step(rows)
+        residual = residual.ravel()
         energy, gradient = float(residual @ residual), self._free_block_transpose @ residual
         if self._folds is not None:
             fold_energy, fold_gradient = self._folds.evaluate(v)
             if fold_gradient is not None:
                 energy, gradient = energy + fold_energy, gradient + fold_gradient
-        return energy, gradient, rows
+        return energy, gradient, (rows, fit)
 
-    def _factorize(self, v, rows):
-        self._hessian.factorize(rows, None if self._folds is None else self._folds.terms(v))
+    def _factorize(self, v, pose):
+        rows, fit = pose
+        self._hessian.factorize(rows, None if self._folds is None else self._folds.terms(v), fit)
 
     def _iterate(self, v, fixed_rows, max_iterations, tolerance):
         """Minimise over the stacked free coordinates ``v`` (2 f,)."""
-        size = self.graph.size  # a bounding-box measure: computed once, not per iteration
+        size = self._size
         step_limit = tolerance * size
         area = self._area
         direction = None
@@ -357,13 +362,14 @@ class Deformer:
         if isinstance(hessian, PaperMatrix):
             newton_limit = 0
         if area is not None:
-            self._factorize(v, (fixed_rows + self._free_block @ v).reshape(2, -1))
+            rows = (fixed_rows + self._free_block @ v).reshape(2, -1)
+            self._factorize(v, (rows, None))
             direction = hessian.solve(area.jacobian(v))
             area.restore(v, direction)
             jacobian = area.jacobian(v)  # kept with direction: both change only with v
-        energy, gradient, rows = self._evaluate(v, fixed_rows)  # gradient: half the true one
+        energy, gradient, pose = self._evaluate(v, fixed_rows)  # gradient: half the true one
         if area is None:
-            self._factorize(v, rows)
+            self._factorize(v, pose)
         newton_steps = 1 if newton_limit else 0
         history = deque(maxlen=HISTORY)
         solution = Solution(v)
@@ -392,14 +398,14 @@ class Deformer:
                     solution.converged = True
                     break
                 continue
-            new_v, new_energy, new_gradient, rows = moved
+            new_v, new_energy, new_gradient, pose = moved
             s = new_v - v
             largest = float(np.abs(s).max())
             solution.iterations += 1
             solution.energies.append(new_energy)
             refactor = newton_steps < newton_limit and largest > NEWTON_UNTIL * size
             if refactor:
-                self._factorize(new_v, rows)
+                self._factorize(new_v, pose)
                 newton_steps += 1
                 history.clear()
             if area is not None:
@@ -446,9 +452,9 @@ class Deformer:
         for _ in range(MAX_HALVINGS):
             trial = v + alpha * step
             if self._area is None or self._area.restore(trial, direction):
-                trial_energy, gradient, rows = self._evaluate(trial, fixed_rows)
+                trial_energy, gradient, pose = self._evaluate(trial, fixed_rows)
                 if trial_energy <= energy + ARMIJO * alpha * slope:
-                    return trial, trial_energy, gradient, rows
+                    return trial, trial_energy, gradient, pose
             alpha *= 0.5
         return None
 

@@ -23,15 +23,37 @@ parts of ``A V``, ``rows[1]`` the y parts, so x and y stack into one flat vector
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from scipy.sparse import coo_matrix, vstack
 
-__all__ = ["DEFAULT_WEIGHTS", "Energy", "mean_value_weights", "similarity_rows"]
+__all__ = ["DEFAULT_WEIGHTS", "Energy", "LocalFit", "mean_value_weights", "similarity_rows"]
 
 DEFAULT_WEIGHTS = {"laplacian": 1.0, "mvc": 1.0, "edge": 1.0}
 
 # Angles are kept inside (0, pi) by this margin: tan(alpha / 2) blows up as alpha nears pi.
 _ANGLE_MARGIN = 1e-6
+
+
+class LocalFit(NamedTuple):
+    """What the local step fitted at one pose; the Newton matrix is built from the same fit.
+
+    Attributes
+    ----------
+    cos, sin : (m,) float64 ndarray
+        Each boundary vertex's fitted rotation (identity where undefined).
+    procrustes : (m,) float64 ndarray
+        ``|sum_k t_k . d_k, sum_k t_k x d_k|`` over its three curve rows: rest rows ``t_k``,
+        current rows ``d_k``.
+    edge_length : (e,) float64 ndarray
+        Current length of each inner edge.
+    """
+
+    cos: np.ndarray
+    sin: np.ndarray
+    procrustes: np.ndarray
+    edge_length: np.ndarray
 
 
 def mean_value_weights(points, centres, neighbours, row_starts):
@@ -187,7 +209,7 @@ class Energy:
         vals = np.concatenate([np.ones(k), -np.ones(k)])
         return coo_matrix((vals, (rows, cols)), shape=(k, n)), inner
 
-    def residual(self, rows):
+    def local_step(self, rows):
         """``A V - b(V)`` from ``A V``: the local step and the residual in one.
 
         Parameters
@@ -197,26 +219,36 @@ class Energy:
 
         Returns
         -------
-        (2, r) float64 ndarray
+        residual : (2, r) float64 ndarray
+        fit : LocalFit
+            The fitted rotations and edge lengths, which the Newton matrix
+            (:mod:`solver.hessian`) is built from at the same pose.
         """
-        residual = rows.copy()  # mean value rows have target zero
-        cos, sin, _ = self.curve_rotations(rows)
-        cos, sin = cos[self._groups], sin[self._groups]
+        fit = self._fit(rows)
+        residual = np.empty_like(rows)
+        curve, lengths = self.curve_rows, self.length_rows
+        mvc = slice(curve.stop, lengths.start)
+        residual[:, mvc] = rows[:, mvc]  # mean value rows have target zero
+        # Each boundary vertex's three rest rows, turned by its fitted rotation (section 4.2).
+        cos, sin = np.repeat(fit.cos, 3), np.repeat(fit.sin, 3)
         rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
-        curve = residual[:, self.curve_rows]
-        curve[0] -= cos * rest_x - sin * rest_y
-        curve[1] -= sin * rest_x + cos * rest_y
+        residual[0, curve] = rows[0, curve] - (cos * rest_x - sin * rest_y)
+        residual[1, curve] = rows[1, curve] - (sin * rest_x + cos * rest_y)
         # Nearest vector of rest length for each inner edge (eq. 4's e(v_i, v_j)).
-        edge = rows[:, self.length_rows]
-        length = np.hypot(edge[0], edge[1])
+        edge = rows[:, lengths]
+        length = fit.edge_length
         if length.min(initial=1.0) > 0.0:
-            residual[:, self.length_rows] = edge * (1.0 - self.rest_length / length)
+            np.multiply(edge, 1.0 - self.rest_length / length, out=residual[:, lengths])
         else:  # a collapsed edge: any direction is optimal; keep its rest direction
             direction = self._rest_direction.copy()
             ok = length > 0.0
             direction[:, ok] = edge[:, ok] / length[ok]
-            residual[:, self.length_rows] = edge - self.rest_length * direction
-        return residual
+            residual[:, lengths] = edge - self.rest_length * direction
+        return residual, fit
+
+    def residual(self, rows):
+        """``A V - b(V)`` from ``A V`` ((2, r), coordinate-major); see :meth:`local_step`."""
+        return self.local_step(rows)[0]
 
     def targets(self, rows_now):
         """The local step: ``b(V)`` from ``A V``.
@@ -233,6 +265,23 @@ class Energy:
         rows = np.ascontiguousarray(np.asarray(rows_now, dtype=np.float64).T)
         return (rows - self.residual(rows)).T
 
+    def _fit(self, rows):
+        """Rotation of each boundary vertex fitted to its three curve rows (2D Procrustes), and
+        the inner edges' current lengths."""
+        rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
+        now_x, now_y = rows[0, self.curve_rows], rows[1, self.curve_rows]
+        cos = np.bincount(self._groups, weights=rest_x * now_x + rest_y * now_y, minlength=self._group_count)
+        sin = np.bincount(self._groups, weights=rest_x * now_y - rest_y * now_x, minlength=self._group_count)
+        norm = np.hypot(cos, sin)
+        if norm.min(initial=1.0) > 0.0:
+            cos, sin = cos / norm, sin / norm
+        else:  # a vertex whose rows all vanish: any rotation fits; take none
+            degenerate = norm == 0.0
+            safe = np.where(degenerate, 1.0, norm)
+            cos, sin = np.where(degenerate, 1.0, cos / safe), np.where(degenerate, 0.0, sin / safe)
+        edge = rows[:, self.length_rows]
+        return LocalFit(cos, sin, norm, np.hypot(edge[0], edge[1]))
+
     def curve_rotations(self, rows):
         """Rotation of each boundary vertex fitted to its three curve rows (2D Procrustes).
 
@@ -248,17 +297,8 @@ class Energy:
         norm : (m,) float64 ndarray
             ``|sum_k t_k . d_k, sum_k t_k x d_k|``; the fitted rotation maximises the first.
         """
-        rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
-        now_x, now_y = rows[0, self.curve_rows], rows[1, self.curve_rows]
-        dots = rest_x * now_x + rest_y * now_y
-        crosses = rest_x * now_y - rest_y * now_x
-        cos = np.bincount(self._groups, weights=dots, minlength=self._group_count)
-        sin = np.bincount(self._groups, weights=crosses, minlength=self._group_count)
-        norm = np.hypot(cos, sin)
-        degenerate = norm == 0.0
-        safe = np.where(degenerate, 1.0, norm)
-        cos, sin = np.where(degenerate, 1.0, cos / safe), np.where(degenerate, 0.0, sin / safe)
-        return cos, sin, norm
+        fit = self._fit(rows)
+        return fit.cos, fit.sin, fit.procrustes
 
     def evaluate(self, positions):
         """Energy and residual at ``positions``.

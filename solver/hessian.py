@@ -68,7 +68,6 @@ class Hessian:
         if triangles is not None:
             families.append(triangles)
         self._families = len(families)
-        self._no_folds = np.zeros(36 * len(triangles)) if triangles is not None else None
         # Each term contributes c u u^T on its points. The distinct products are laid out flat,
         # family by family; a constant sparse matrix sums (with signs) the products that land on
         # each stored upper-triangle entry, so assembly is one mat-vec. An edge's u is
@@ -113,6 +112,14 @@ class Hessian:
         self._gather = csr_matrix((signs, (locate(rows, cols), flat_index)), shape=(shape.nnz, offset))
         self._upper = csc_matrix((self._base.copy(), shape.indices, shape.indptr), shape=shape.shape)
         self._factor = None
+        # The products, laid out flat as the gather matrix reads them, written in place.
+        self._products = np.zeros(offset)
+        count_edges, count_groups = len(families[0]), len(families[1])
+        self._edge_products = self._products[:3 * count_edges].reshape(count_edges, 3)
+        end = 3 * count_edges + 36 * count_groups
+        self._group_products = self._products[3 * count_edges:end].reshape(count_groups, 6, 6)
+        if triangles is not None:
+            self._fold_products = self._products[end:].reshape(len(triangles), 6, 6)
 
         # Curve groups: w_k = R J t_k / sqrt(T) with t_k the rest rows and J the quarter turn, and
         # u = A^T w on the group's three points; R is the only part that changes with the pose.
@@ -126,7 +133,7 @@ class Hessian:
         self._group_base_x = np.ascontiguousarray(corners[..., 0])
         self._group_base_y = np.ascontiguousarray(corners[..., 1])
 
-    def matrix(self, rows, fold_terms=None):
+    def matrix(self, rows, fold_terms=None, fit=None):
         """Upper triangle of the projected Hessian (halved) at the pose with ``A V = rows``.
 
         Parameters
@@ -136,53 +143,67 @@ class Hessian:
         fold_terms : tuple, optional
             :meth:`solver.folds.FoldPenalty.terms` at the same pose, for a Hessian built with
             ``triangles``; None when no triangle is squeezed.
+        fit : solver.energy.LocalFit, optional
+            :meth:`~solver.energy.Energy.local_step`'s fit at the same pose, if already made.
 
         Returns
         -------
         (2 f, 2 f) scipy.sparse.csc_matrix
             Reused by the next call: copy it to keep it.
         """
-        c, a, b = self._edge_terms(rows)
+        if fit is None:
+            fit = self.energy.local_step(rows)[1]
+        products = self._products
+        edges, groups = self._edge_products, self._group_products
+        c, a, b = self._edge_terms(rows, fit)
         ca = c * a
-        products = [np.stack([ca * a, ca * b, c * b * b], axis=1).ravel()]
-        c, u = self._group_terms(rows)
-        products.append((c[:, None, None] * u[:, :, None] * u[:, None, :]).ravel())
+        np.multiply(ca, a, out=edges[:, 0])
+        np.multiply(ca, b, out=edges[:, 1])
+        np.multiply(c * b, b, out=edges[:, 2])
+        c, u = self._group_terms(fit)
+        np.multiply((c[:, None] * u)[:, :, None], u[:, None, :], out=groups)
         if self._families == 3:
-            products.append(self._no_folds if fold_terms is None else
-                            (fold_terms[0][:, None, None] * fold_terms[1][:, :, None]
-                             * fold_terms[1][:, None, :]).ravel())
+            folds = self._fold_products
+            if fold_terms is None:
+                folds[:] = 0.0
+            else:
+                c, u = fold_terms
+                np.multiply((c[:, None] * u)[:, :, None], u[:, None, :], out=folds)
         # The pattern never changes: overwrite the values of one matrix rather than building one.
-        np.subtract(self._base, self._gather @ np.concatenate(products), out=self._upper.data)
+        np.subtract(self._base, self._gather @ products, out=self._upper.data)
         return self._upper
 
-    def _edge_terms(self, rows):
+    def _edge_terms(self, rows, fit):
         """Coefficients (e,) and the scaled unit normal ``(a, b)`` of each edge: its u vector is
         ``[a, -a, b, -b]`` on ``[x_i, x_j, y_i, y_j]``."""
         energy = self.energy
         edge_x, edge_y = rows[0, energy.length_rows], rows[1, energy.length_rows]
-        length = np.hypot(edge_x, edge_y)
-        ok = length > 0
-        inverse = np.divide(1.0, length, out=np.zeros_like(length), where=ok)
+        length = fit.edge_length
+        if length.min(initial=1.0) > 0.0:
+            inverse = 1.0 / length
+        else:
+            inverse = np.divide(1.0, length, out=np.zeros_like(length), where=length > 0)
         coefficient = np.minimum(1.0 - CLAMP, energy.rest_length * inverse)  # 0 where collapsed
         inverse *= energy.edge_scale
         return coefficient, -edge_y * inverse, edge_x * inverse
 
-    def _group_terms(self, rows):
+    def _group_terms(self, fit):
         """Coefficients (m,) and u vectors (m, 6) laid out as [x_here, x_before, x_after, y_...]."""
-        cos, sin, norm = self.energy.curve_rotations(rows)
+        cos, sin, norm = fit.cos, fit.sin, fit.procrustes
         ok = (norm > 0) & (self._group_total > 0)
         coefficient = np.where(ok, np.minimum(1.0 - CLAMP, self._group_total / np.where(ok, norm, 1.0)), 0.0)
         # u is the fitted rotation applied to fixed combinations of the rest rows (see __init__).
         base_x, base_y = self._group_base_x, self._group_base_y
         u = np.empty((len(cos), 6))
-        u[:, :3] = cos[:, None] * base_x - sin[:, None] * base_y
-        u[:, 3:] = sin[:, None] * base_x + cos[:, None] * base_y
+        cos, sin = cos[:, None], sin[:, None]
+        u[:, :3] = cos * base_x - sin * base_y
+        u[:, 3:] = sin * base_x + cos * base_y
         return coefficient, u
 
-    def factorize(self, rows, fold_terms=None):
+    def factorize(self, rows, fold_terms=None, fit=None):
         """Factor the Hessian at the pose with ``A V = rows`` ((2, r)); the symbolic analysis
-        is done only the first time."""
-        upper = self.matrix(rows, fold_terms)
+        is done only the first time. ``fold_terms`` and ``fit`` as for :meth:`matrix`."""
+        upper = self.matrix(rows, fold_terms, fit)
         if self._factor is None:
             self._factor = qdldl.Solver(upper, upper=True)
         else:
@@ -216,7 +237,7 @@ class PaperMatrix:
         stiffness = (columns.T @ columns).tocsc()
         self._factor = qdldl.Solver(triu(stiffness, format="csc"), upper=True)
 
-    def factorize(self, rows, fold_terms=None):
+    def factorize(self, rows, fold_terms=None, fit=None):
         """Nothing to do: the matrix does not depend on the pose."""
 
     def solve(self, rhs):

@@ -21,7 +21,7 @@ def _stretched(prevent_flips):
 def test_newton_matrix_matches_finite_differences_of_the_gradient():
     graph, deformer, pose, fixed_rows, rng = _stretched(prevent_flips=False)
     v = pose[deformer.free].T.ravel()
-    rows = deformer._evaluate(v, fixed_rows)[2]
+    rows = deformer._evaluate(v, fixed_rows)[2][0]
     upper = deformer._hessian.matrix(rows).toarray()
     newton = upper + np.triu(upper, 1).T  # the halved Hessian, as the gradient is halved
     step = 1e-6 * graph.size
@@ -46,7 +46,7 @@ def test_fold_terms_add_the_penalty_gauss_newton_matrix():
     folds.hold(pose[deformer._fixed])
     v = pose[deformer.free].T.ravel()
     fixed_rows = (deformer._fixed_columns @ pose[deformer._fixed]).T.ravel()
-    rows = deformer._evaluate(v, fixed_rows)[2]
+    rows = deformer._evaluate(v, fixed_rows)[2][0]
     terms = folds.terms(v)
     assert terms is not None and np.count_nonzero(terms[0]) >= 1
     added = deformer._hessian.matrix(rows, terms).toarray() - deformer._hessian.matrix(rows, None).toarray()
