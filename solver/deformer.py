@@ -10,7 +10,8 @@ pose (one linear solve that turns free limbs with what they hang from), take a f
 Newton steps (:mod:`solver.hessian`: one numeric refactorisation each, the symbolic analysis is
 shared), then continue with L-BFGS using the last factor as its initial Hessian, so later
 iterations cost one back-substitution as in the paper. A backtracking line search makes every
-iteration lower the energy.
+iteration lower the energy. Large graphs, whose Newton matrix is too costly to refactor, take
+the same steps with a two-grid preconditioner (:mod:`solver.two_grid`) in its place.
 
 With ``preserve_area`` the total area is a hard constraint (section 5). Each iteration makes one
 extra solve ``d = H^-1 J^T`` as the paper does with ``(A^T A)^-1 J^T``; the step is projected onto
@@ -31,9 +32,12 @@ import qdldl
 from scipy.sparse import block_diag, coo_matrix, identity, triu
 from scipy.spatial import cKDTree
 
+from .binding import bind
 from .energy import Energy, similarity_rows
 from .folds import FoldPenalty
+from .graph import build_graph
 from .hessian import Hessian, PaperMatrix
+from .two_grid import TwoGrid
 
 __all__ = ["Deformer", "Solution", "DEFAULT_MAX_ITERATIONS", "DEFAULT_TOLERANCE"]
 
@@ -46,8 +50,8 @@ NEWTON_STEPS = 4
 NEWTON_UNTIL = 1e-2
 # Above this many points the coupled Newton matrix fills in too much to refactor (at ~5,000
 # points a refactorisation costs ~90 ms, 17 back-substitutions): such graphs iterate with the
-# paper's constant matrix (one factorisation, back-substitutions only), 3-5x faster per solve
-# there for a pose within ~1e-3 of the size of the converged one on typical drags.
+# two-grid preconditioner of solver.two_grid (the paper's constant matrix, factorised once,
+# plus a Newton correction on a coarse copy of the shape, refactorised like the Newton matrix).
 NEWTON_MAX_POINTS = 3000
 # The area constraint's curvature is not in the Newton matrix (adding it makes the matrix
 # indefinite), so constrained solves lean on more Newton steps.
@@ -165,8 +169,10 @@ class Deformer:
         refactorisation (the symbolic analysis is shared), then L-BFGS; converges in ~10
         iterations. ``False``: the paper's way, ``A_f^T A_f`` factorised once here and never
         again (moving handles only changes right-hand sides), L-BFGS on it from the pose of a
-        coarse copy of the shape; cheaper per iteration, slower to turn free limbs. By default
-        ``True`` up to ``NEWTON_MAX_POINTS`` points.
+        coarse copy of the shape; cheaper per iteration, slower to turn free limbs. ``None``
+        (default): ``True`` up to ``NEWTON_MAX_POINTS`` points; above, L-BFGS on the two-grid
+        preconditioner of :mod:`solver.two_grid`, whose fine factor is ``A_f^T A_f`` and whose
+        small coarse Newton matrix is refactorised as the Newton matrix would be.
     prevent_flips : bool
         The paper's energy admits poses with folded (inverted) triangles in large bends (where a
         dragged region meets the rest, typically). With this on, triangles squeezed below a
@@ -224,6 +230,11 @@ class Deformer:
             if newton or (newton is None and graph.n <= NEWTON_MAX_POINTS):
                 self._hessian = Hessian(self.energy, self.free,
                                         None if self._folds is None else graph.triangles)
+            elif newton is None:
+                # The fold penalty stays out of the two-grid's matrix: its curvature is not below
+                # the smoother's, so the cycle could lose definiteness; L-BFGS learns it instead.
+                coarse_binding = bind(_coarse_copy(graph), graph.points)
+                self._hessian = TwoGrid(self.energy, self.free, coarse_binding.weights[self.free])
             else:
                 self._hessian = PaperMatrix(self.energy, self.free)
                 self._coarse = _CoarseStart(graph, handles, weights, preserve_area, self.prevent_flips)
@@ -462,17 +473,14 @@ class Deformer:
 class _CoarseStart:
     """The pose of a coarse copy of the shape, carried to a large graph's points.
 
-    A large graph iterates with the paper's constant matrix, which is slow to turn free limbs
-    (see :mod:`solver.hessian`). A graph of a few hundred points built from the same boundary
+    With ``newton=False`` a large graph iterates with the paper's constant matrix alone, which
+    is slow to turn free limbs (see :mod:`solver.hessian`). A graph of a few hundred points built from the same boundary
     solves with Newton steps in milliseconds and gets those turns right; the fine iterations
     then only fix local detail, which the constant matrix does well.
     """
 
     def __init__(self, graph, handles, weights, preserve_area, prevent_flips):
-        from .binding import bind
-        from .graph import build_graph
-
-        self.graph = build_graph([graph.points[loop] for loop in graph.boundary_loops])
+        self.graph = _coarse_copy(graph)
         rest = graph.points[handles]
         # Each coarse point nearest a handle point follows that handle point's target.
         _, nearest = cKDTree(self.graph.points).query(rest)
@@ -485,6 +493,11 @@ class _CoarseStart:
     def start(self, targets):
         coarse = self.deformer.solve(targets[self.first] + self.offset)
         return self.binding.apply(coarse.positions)
+
+
+def _coarse_copy(graph):
+    """A graph of a few hundred points (the default spacing) built from ``graph``'s boundary."""
+    return build_graph([graph.points[loop] for loop in graph.boundary_loops])
 
 
 def _multiplier(gradient, jacobian, direction):
