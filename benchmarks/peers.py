@@ -23,7 +23,14 @@ from scipy.sparse.linalg import splu
 import solver
 from benchmarks.shapes import drag_targets
 
-__all__ = ["Method", "ours", "linear_baseline", "plain_iteration", "libigl_arap", "blender_laplacian"]
+__all__ = ["Method", "ours", "linear_baseline", "plain_iteration", "libigl_arap", "blender_laplacian",
+           "fine_factor"]
+
+
+def fine_factor(deformer):
+    """The factor one of ``deformer``'s iterations back-substitutes with, over the whole graph:
+    the Newton factor, or on large graphs the two-grid preconditioner's fine (paper's) factor."""
+    return getattr(deformer._hessian, "_smoother", deformer._hessian)
 
 
 @dataclass

@@ -21,6 +21,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import solver  # noqa: E402
+from benchmarks.peers import fine_factor  # noqa: E402
 from benchmarks.shapes import SHAPES, horse, standard_drag  # noqa: E402
 
 
@@ -59,7 +60,7 @@ def measure(name, rings, spacing, repeats):
     pose = deformer.solve(targets)
     ours = median_time(lambda: deformer.solve(targets), repeats)
     rhs = np.ones(2 * len(deformer.free))
-    back = median_time(lambda: deformer._hessian.solve(rhs), max(repeats, 20))
+    back = median_time(lambda: fine_factor(deformer).solve(rhs), max(repeats, 20))
     igl_pre, igl_solve = libigl_arap(graph, handles, targets, 10)
     igl_time = median_time(igl_solve, repeats)
     return {

@@ -253,6 +253,20 @@ def test_large_graph_path_converges_from_a_coarse_start(horse_graph, horse_drag,
     assert np.abs(pose.positions - newton.positions).max() <= 1e-3 * horse_graph.size
 
 
+def test_very_large_graphs_keep_the_papers_factor(horse_graph, horse_drag, monkeypatch):
+    """Above TWO_GRID_MAX_POINTS the default iterates the paper's matrix alone from the coarse
+    copy's pose: no refactorisation at all (exercised by lowering both thresholds)."""
+    import solver.deformer
+
+    handles, targets, _ = horse_drag
+    monkeypatch.setattr(solver.deformer, "NEWTON_MAX_POINTS", 10)
+    monkeypatch.setattr(solver.deformer, "TWO_GRID_MAX_POINTS", 20)
+    pose = solver.Deformer(horse_graph, handles).solve(targets)
+    assert pose.factorizations == 0
+    assert np.array_equal(pose.positions[handles], targets)
+    assert np.all(np.diff(pose.energies) <= 0.0)
+
+
 @pytest.fixture(scope="module")
 def fine_horse(horse_rings):
     """The horse at about 6,000 graph points, above NEWTON_MAX_POINTS; the region around its
