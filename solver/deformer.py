@@ -237,8 +237,6 @@ class Deformer:
                 self._hessian = Hessian(self.energy, self.free,
                                         None if self._folds is None else graph.triangles)
             elif newton is None and graph.n <= TWO_GRID_MAX_POINTS:
-                # The fold penalty stays out of the two-grid's matrix: its curvature is not below
-                # the smoother's, so the cycle could lose definiteness; L-BFGS learns it instead.
                 coarse_binding = bind(_coarse_copy(graph), graph.points)
                 self._hessian = TwoGrid(self.energy, self.free, coarse_binding.weights[self.free])
             else:

@@ -133,6 +133,12 @@ class Hessian:
         self._group_base_x = np.ascontiguousarray(corners[..., 0])
         self._group_base_y = np.ascontiguousarray(corners[..., 1])
 
+    @property
+    def pattern(self):
+        """The upper triangle's sparsity, ``(2 f, 2 f)`` csc: :meth:`matrix` only ever fills in
+        the values of this one matrix, in this order."""
+        return self._upper
+
     def matrix(self, rows, fold_terms=None, fit=None):
         """Upper triangle of the projected Hessian (halved) at the pose with ``A V = rows``.
 

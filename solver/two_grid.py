@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 import qdldl
-from scipy.sparse import block_diag, coo_matrix, csc_matrix, identity, triu
+from scipy.sparse import block_diag, coo_matrix, csc_matrix
 
 from .hessian import Hessian, PaperMatrix
 
@@ -31,6 +31,8 @@ __all__ = ["TwoGrid"]
 
 # Keeps the coarse matrix definite where the fine free points hardly move a coarse point.
 _REGULARISATION = 1e-10
+# Fine matrix entries handled at once while building the Galerkin map.
+_CHUNK = 20000
 
 
 class TwoGrid:
@@ -48,22 +50,25 @@ class TwoGrid:
     prolongation : (f, c) scipy.sparse matrix
         Weights carrying coarse point displacements to the free fine points (a
         :class:`~solver.binding.Binding`'s rows for them).
-    triangles : (t, 3) int ndarray, optional
-        The fine graph's triangles, when the fold penalty is on (see :class:`Hessian`).
+
+    Notes
+    -----
+    The fold penalty's terms stay out: their curvature is not below ``K``'s, so with them the
+    cycle could lose definiteness. L-BFGS learns that curvature instead.
     """
 
-    def __init__(self, energy, free, prolongation, triangles=None):
+    def __init__(self, energy, free, prolongation):
         self._smoother = PaperMatrix(energy, free)
-        self._newton = Hessian(energy, free, triangles)  # assembled, never factored
+        self._newton = Hessian(energy, free)  # assembled, never factored
         prolongation = prolongation.tocsc()
         reached = np.flatnonzero(np.asarray(abs(prolongation).sum(axis=0)).ravel() > 0.0)
         columns = prolongation[:, reached]
         self._up = block_diag([columns, columns], format="csr")
         self._down = self._up.T.tocsr()
+        self._galerkin, self._coarse_upper, self._diagonal_slots = _galerkin_map(
+            self._newton.pattern, self._up)
         self._upper = None           # fine Newton matrix, upper triangle (csc)
         self._diagonal = None
-        self._pattern_keys = None    # the coarse matrix's fixed sparsity, upper triangle
-        self._coarse_upper = None
         self._factor = None
 
     def factorize(self, rows, fold_terms=None, fit=None):
@@ -71,35 +76,14 @@ class TwoGrid:
         ``A V = rows`` ((2, r)); arguments as for :meth:`Hessian.matrix`."""
         upper = self._newton.matrix(rows, fold_terms, fit)
         self._upper, self._diagonal = upper, upper.diagonal()
-        # P^T H P with H = U + U^T - D: half of it from U, then symmetrised.
-        half = (self._down @ (upper @ self._up)).tocsr()
-        coarse = half + half.T - self._down @ (self._up.multiply(self._diagonal[:, None])).tocsr()
-        coarse = triu(coarse, format="coo")
-        if self._pattern_keys is None:
-            self._start_pattern(coarse)
-        # Sparse products drop entries that happen to be 0.0; the factor's pattern must not move.
-        n = self._coarse_upper.shape[0]
-        keys = coarse.col.astype(np.int64) * n + coarse.row
-        values = np.zeros(len(self._pattern_keys))
-        values[np.searchsorted(self._pattern_keys, keys)] = coarse.data
-        values[self._diagonal_slots] += _REGULARISATION * values[self._diagonal_slots].max()
-        self._coarse_upper.data[:] = values
+        values = self._coarse_upper.data
+        values[:] = self._galerkin @ upper.data
+        diagonal = self._diagonal_slots
+        values[diagonal] += _REGULARISATION * values[diagonal].max()
         if self._factor is None:
             self._factor = qdldl.Solver(self._coarse_upper, upper=True)
         else:
             self._factor.update(self._coarse_upper, upper=True)
-
-    def _start_pattern(self, coarse):
-        """Fix the coarse matrix's upper-triangle pattern: every entry the products can reach."""
-        n = coarse.shape[0]
-        structure = lambda m: m.__class__((np.ones(m.nnz), m.indices, m.indptr), shape=m.shape)
-        reach = structure(self._down) @ structure(self._upper) @ structure(self._up)
-        reach = triu(reach + reach.T + identity(n), format="csc")
-        reach.sort_indices()
-        self._coarse_upper = csc_matrix((np.zeros(reach.nnz), reach.indices, reach.indptr), shape=(n, n))
-        columns = np.repeat(np.arange(n, dtype=np.int64), np.diff(reach.indptr))
-        self._pattern_keys = columns * n + reach.indices
-        self._diagonal_slots = np.searchsorted(self._pattern_keys, np.arange(n, dtype=np.int64) * (n + 1))
 
     def _times_newton(self, x):
         upper = self._upper
@@ -114,3 +98,61 @@ class TwoGrid:
         x += self._smoother.solve(rhs - self._times_newton(x))
         x += self._coarse_correction(rhs - self._times_newton(x))
         return x
+
+
+def _galerkin_map(fine_upper, up):
+    """The linear map from the fine upper triangle's values to the coarse one's.
+
+    ``P^T H P`` with ``H = U + U^T - diag(U)`` and ``P = up`` (at most a few entries per row) is
+    linear in ``U``'s values, with a sparsity that never changes; as one sparse matrix it turns
+    a refresh into a mat-vec.
+
+    Returns
+    -------
+    galerkin : (s, u) scipy.sparse.csr_matrix
+        Coarse upper-triangle values (csc order) from the fine ones (``fine_upper.data``).
+    coarse_upper : (c, c) scipy.sparse.csc_matrix
+        The coarse upper triangle, values to be filled in.
+    diagonal_slots : (c,) int ndarray
+        Positions of its diagonal in ``coarse_upper.data``.
+    """
+    fine = fine_upper.tocoo()
+    up = up.tocsr()
+    count = up.shape[1]
+    # Each row of P padded to the same width (zero weights where shorter).
+    per_row = np.diff(up.indptr)
+    width = max(int(per_row.max(initial=0)), 1)
+    owner = np.repeat(np.arange(up.shape[0]), per_row)
+    place = np.arange(up.nnz) - up.indptr[owner]
+    index = np.zeros((up.shape[0], width), dtype=np.int64)
+    weight = np.zeros((up.shape[0], width))
+    index[owner, place], weight[owner, place] = up.indices, up.data
+    # Entry (i, j) of U with value h adds h P_i^T P_j to P^T U P, and P_j^T P_i when i != j
+    # (the same entry's mirror in U^T). Built in chunks of entries to bound the memory used.
+    keys, weights, entries = [], [], []
+    for first in range(0, fine.nnz, _CHUNK):
+        chunk = np.arange(first, min(first + _CHUNK, fine.nnz))
+        i, j = fine.row[chunk], fine.col[chunk]
+        shape = (len(chunk), width, width)
+        a = np.broadcast_to(index[i][:, :, None], shape)
+        b = np.broadcast_to(index[j][:, None, :], shape)
+        w = weight[i][:, :, None] * weight[j][:, None, :]
+        entry = np.broadcast_to(chunk[:, None, None], shape)
+        mirror = i != j
+        a, b = np.concatenate([a.ravel(), b[mirror].ravel()]), np.concatenate([b.ravel(), a[mirror].ravel()])
+        w = np.concatenate([w.ravel(), w[mirror].ravel()])
+        entry = np.concatenate([entry.ravel(), entry[mirror].ravel()])
+        keep = (w != 0.0) & (a <= b)
+        keys.append(b[keep] * count + a[keep])           # (column, row): csc order
+        weights.append(w[keep])
+        entries.append(entry[keep])
+    keys, weights, entries = np.concatenate(keys), np.concatenate(weights), np.concatenate(entries)
+    diagonal_keys = np.arange(count, dtype=np.int64) * (count + 1)
+    slots = np.union1d(keys, diagonal_keys)
+    galerkin = coo_matrix((weights, (np.searchsorted(slots, keys), entries)),
+                          shape=(len(slots), fine.nnz)).tocsr()
+    galerkin.sum_duplicates()
+    columns, rows = np.divmod(slots, count)
+    indptr = np.searchsorted(columns, np.arange(count + 1))
+    coarse_upper = csc_matrix((np.zeros(len(slots)), rows, indptr), shape=(count, count))
+    return galerkin, coarse_upper, np.searchsorted(slots, diagonal_keys)
