@@ -272,7 +272,7 @@ class Energy:
         now_x, now_y = rows[0, self.curve_rows], rows[1, self.curve_rows]
         cos = np.bincount(self._groups, weights=rest_x * now_x + rest_y * now_y, minlength=self._group_count)
         sin = np.bincount(self._groups, weights=rest_x * now_y - rest_y * now_x, minlength=self._group_count)
-        norm = np.hypot(cos, sin)
+        norm = np.sqrt(cos * cos + sin * sin)  # np.hypot is 3x slower here
         if norm.min(initial=1.0) > 0.0:
             cos, sin = cos / norm, sin / norm
         else:  # a vertex whose rows all vanish: any rotation fits; take none
@@ -280,7 +280,8 @@ class Energy:
             safe = np.where(degenerate, 1.0, norm)
             cos, sin = np.where(degenerate, 1.0, cos / safe), np.where(degenerate, 0.0, sin / safe)
         edge = rows[:, self.length_rows]
-        return LocalFit(cos, sin, norm, np.hypot(edge[0], edge[1]))
+        edge_x, edge_y = edge
+        return LocalFit(cos, sin, norm, np.sqrt(edge_x * edge_x + edge_y * edge_y))
 
     def curve_rotations(self, rows):
         """Rotation of each boundary vertex fitted to its three curve rows (2D Procrustes).
