@@ -26,12 +26,19 @@ from benchmarks.shapes import SHAPES, horse, standard_drag  # noqa: E402
 
 
 def median_time(function, repeats):
-    times = []
+    return median_times([function], repeats)[0]
+
+
+def median_times(functions, repeats):
+    """Median seconds of each function, timed in turns (one call of each per round), so that a
+    busy spell on the machine slows all of them alike and their ratios hold."""
+    times = [[] for _ in functions]
     for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
+        for function, kept in zip(functions, times):
+            start = time.perf_counter()
+            function()
+            kept.append(time.perf_counter() - start)
+    return [float(np.median(kept)) for kept in times]
 
 
 def libigl_arap(graph, handles, targets, iterations):
@@ -58,11 +65,11 @@ def measure(name, rings, spacing, repeats):
     deformer = solver.Deformer(graph, handles)
     precompute = time.perf_counter() - start
     pose = deformer.solve(targets)
-    ours = median_time(lambda: deformer.solve(targets), repeats)
     rhs = np.ones(2 * len(deformer.free))
     back = median_time(lambda: fine_factor(deformer).solve(rhs), max(repeats, 20))
     igl_pre, igl_solve = libigl_arap(graph, handles, targets, 10)
-    igl_time = median_time(igl_solve, repeats)
+    igl_solve()
+    ours, igl_time = median_times([lambda: deformer.solve(targets), igl_solve], repeats)
     return {
         "shape": name, "boundary": len(graph.boundary), "interior": len(graph.interior),
         "graph ms": build * 1e3, "precompute ms": precompute * 1e3,
@@ -76,7 +83,7 @@ def measure(name, rings, spacing, repeats):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--large", action="store_true", help="add a 50,000-point horse")
-    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--repeats", type=int, default=31)
     args = parser.parse_args(argv)
 
     cases = [(name, make(), None) for name, make in SHAPES.items()]
@@ -87,7 +94,7 @@ def main(argv=None):
         cases.append(("horse 50k", horse_rings, np.sqrt(area / 46000)))
     rows = []
     for name, rings, spacing in cases:
-        rows.append(measure(name, rings, spacing, args.repeats if "k" not in name[-2:] else 3))
+        rows.append(measure(name, rings, spacing, args.repeats if "k" not in name[-2:] else 5))
         print(f"measured {name}", file=sys.stderr, flush=True)
 
     columns = list(rows[0])
