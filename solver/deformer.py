@@ -10,8 +10,9 @@ pose (one linear solve that turns free limbs with what they hang from), take a f
 Newton steps (:mod:`solver.hessian`: one numeric refactorisation each, the symbolic analysis is
 shared), then continue with L-BFGS using the last factor as its initial Hessian, so later
 iterations cost one back-substitution as in the paper. A backtracking line search makes every
-iteration lower the energy. Large graphs, whose Newton matrix is too costly to refactor, take
-the same steps with a two-grid preconditioner (:mod:`solver.two_grid`) in its place.
+iteration lower the energy. Large graphs, whose Newton matrix is too costly to refactor, start
+from the pose of a coarse copy of the shape and take the same steps with a two-grid
+preconditioner (:mod:`solver.two_grid`) in the Newton factor's place.
 
 With ``preserve_area`` the total area is a hard constraint (section 5). Each iteration makes one
 extra solve ``d = H^-1 J^T`` as the paper does with ``(A^T A)^-1 J^T``; the step is projected onto
@@ -236,12 +237,12 @@ class Deformer:
             if newton or (newton is None and graph.n <= NEWTON_MAX_POINTS):
                 self._hessian = Hessian(self.energy, self.free,
                                         None if self._folds is None else graph.triangles)
-            elif newton is None and graph.n <= TWO_GRID_MAX_POINTS:
-                coarse_binding = bind(_coarse_copy(graph), graph.points)
-                self._hessian = TwoGrid(self.energy, self.free, coarse_binding.weights[self.free])
             else:
-                self._hessian = PaperMatrix(self.energy, self.free)
                 self._coarse = _CoarseStart(graph, handles, weights, preserve_area, self.prevent_flips)
+                if newton is None and graph.n <= TWO_GRID_MAX_POINTS:
+                    self._hessian = TwoGrid(self.energy, self.free, self._coarse.binding.weights[self.free])
+                else:
+                    self._hessian = PaperMatrix(self.energy, self.free)
         if len(self.free) and self._coarse is None:
             # The similarity system for the start (see energy.similarity_rows), x and y stacked.
             similarity = similarity_rows(graph.points, graph.triangles).tocsc()
@@ -475,16 +476,19 @@ class Deformer:
 
 
 class _CoarseStart:
-    """The pose of a coarse copy of the shape, carried to a large graph's points.
+    """The pose of a coarse copy of the shape, carried to a large graph's points: the start of
+    every solve above ``NEWTON_MAX_POINTS``.
 
-    With ``newton=False`` a large graph iterates with the paper's constant matrix alone, which
-    is slow to turn free limbs (see :mod:`solver.hessian`). A graph of a few hundred points built from the same boundary
-    solves with Newton steps in milliseconds and gets those turns right; the fine iterations
-    then only fix local detail, which the constant matrix does well.
+    A graph of a few hundred points built from the same boundary solves with Newton steps in
+    milliseconds and gets the turns of whole limbs right; the fine iterations then fix local
+    detail. Starting there also keeps a dense graph's pose close to the coarse one's: from the
+    as-similar-as-possible start, a 9,000-point horse turning its head settled in a minimum
+    with 9% more energy, 3% of its size away from the coarse pose.
     """
 
     def __init__(self, graph, handles, weights, preserve_area, prevent_flips):
-        self.graph = _coarse_copy(graph)
+        # The default spacing: a few hundred points, whatever the fine graph's density.
+        self.graph = build_graph([graph.points[loop] for loop in graph.boundary_loops])
         rest = graph.points[handles]
         # Each coarse point nearest a handle point follows that handle point's target.
         _, nearest = cKDTree(self.graph.points).query(rest)
@@ -497,11 +501,6 @@ class _CoarseStart:
     def start(self, targets):
         coarse = self.deformer.solve(targets[self.first] + self.offset)
         return self.binding.apply(coarse.positions)
-
-
-def _coarse_copy(graph):
-    """A graph of a few hundred points (the default spacing) built from ``graph``'s boundary."""
-    return build_graph([graph.points[loop] for loop in graph.boundary_loops])
 
 
 def _multiplier(gradient, jacobian, direction):
