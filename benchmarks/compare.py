@@ -650,7 +650,8 @@ def where_peers_win(rows, fig4):
     flipping = [r for r in rows if r["method"] == "ours" and r["flips"]]
     if flipping:
         lines.append(
-            "* Where our flips come from: the start (the as-similar-as-possible pose) has "
+            "* Where our flips come from: the start (the as-similar-as-possible pose; above "
+            f"{NEWTON_MAX_POINTS} points the coarse copy's) has "
             + ", ".join(f"{r['start flips']}" for r in flipping)
             + " flipped triangles in those cases, the returned pose "
             + ", ".join(f"{r['flips']}" for r in flipping)
