@@ -315,6 +315,26 @@ def test_large_graph_drag_played_with_warm_starts_reaches_the_jumped_pose(fine_h
     assert np.abs(pose.positions - jumped).max() <= 1e-3 * graph.size
 
 
+def test_large_graph_keeps_its_area_and_opens_its_folds(fine_horse):
+    """The two-grid path with the area constraint and with the fold penalty."""
+    graph, handles, targets = fine_horse
+    pose = solver.Deformer(graph, handles, preserve_area=True).solve(targets)
+    assert abs(graph.area(pose.positions) / graph.area() - 1.0) <= 1e-9
+    assert np.all(np.diff(pose.energies) <= 0.0)
+    # Hooves pinned, head pulled back: the paper's energy folds 119 triangles here.
+    points = graph.points
+    hooves = [region(points, c, 12.0) for c in [(60, 20), (125, 28), (262, 22), (285, 18)]]
+    head = region(points, (370, 240), 20.0)
+    handles = np.concatenate(hooves + [head])
+    targets = points[handles].copy()
+    targets[-len(head):] += [-120.0, 80.0]
+    plain = solver.Deformer(graph, handles).solve(targets)
+    pose = solver.Deformer(graph, handles, prevent_flips=True).solve(targets)
+    assert flipped(graph, plain.positions) > 0
+    assert flipped(graph, pose.positions) == 0
+    assert np.all(np.diff(pose.energies) <= 0.0)
+
+
 def test_paper_matrix_mode_never_refactorises(horse_graph, horse_drag):
     handles, targets, _ = horse_drag
     deformer = solver.Deformer(horse_graph, handles, newton=False)
