@@ -43,7 +43,7 @@ from .two_grid import TwoGrid
 __all__ = ["Deformer", "Solution", "DEFAULT_MAX_ITERATIONS", "DEFAULT_TOLERANCE"]
 
 DEFAULT_MAX_ITERATIONS = 30
-# Stop when no point moved more than this fraction of the shape's size in an iteration.
+# Stop when the next step would move no point more than this fraction of the shape's size.
 DEFAULT_TOLERANCE = 1e-4
 # Newton steps (refactorisations) at most per solve, taken while steps are larger than
 # NEWTON_UNTIL times the shape's size; then L-BFGS reuses the last factor.
@@ -304,7 +304,7 @@ class Deformer:
         max_iterations : int, optional
             Default ``DEFAULT_MAX_ITERATIONS``.
         tolerance : float, optional
-            Stop once no point moves more than ``tolerance * graph.size`` in an iteration.
+            Stop once the next step would move no point more than ``tolerance * graph.size``.
             ``0.0`` runs exactly ``max_iterations``. Default ``DEFAULT_TOLERANCE``.
         initial : (n, 2) array_like, optional
             Warm start. By default the as-similar-as-possible pose for the targets (for large
@@ -405,6 +405,13 @@ class Deformer:
                 if area is not None:
                     step = _tangent(step, jacobian, direction)
                 slope = 2.0 * float(gradient @ step)
+            # Converged when the proposed step moves no point more than the tolerance: the pose
+            # is then that close to the minimum the model sees. (A step the line search shortened
+            # would say nothing of the kind; checking before the search also saves an energy
+            # evaluation.)
+            if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit:
+                solution.converged = True
+                break
             moved = self._line_search(v, fixed_rows, energy, step, slope, direction)
             if moved is None:
                 # No decrease is possible: this is a minimum to rounding.
@@ -438,11 +445,6 @@ class Deformer:
             v, energy, gradient = new_v, new_energy, new_gradient
             if area is not None:
                 direction, jacobian = new_direction, new_jacobian
-            # Converged when the step taken and the step proposed are both small: a step that
-            # the line search had to shorten says nothing about being near the minimum.
-            if tolerance > 0.0 and max(largest, float(np.abs(step).max())) <= step_limit:
-                solution.converged = True
-                break
         solution.positions = v
         solution.factorizations = newton_steps
         return solution
