@@ -37,13 +37,18 @@ def horse_graph(horse_rings):
     return solver.build_graph(horse_rings)
 
 
-@pytest.fixture(scope="session")
-def horse_drag(horse_graph):
-    """Hooves pinned, head dragged up and back by a third of the horse's size."""
-    points = horse_graph.points
+def hooves_and_head(points):
+    """On a graph of the traced horse (any density): hooves pinned, head dragged up and back by
+    a third of the horse's size. Returns handles, targets and how many handles are the head."""
     hooves = [region(points, c, 12.0) for c in [(60, 20), (125, 28), (262, 22), (285, 18)]]
     head = region(points, (370, 240), 20.0)
     handles = np.concatenate(hooves + [head])
     targets = points[handles].copy()
     targets[-len(head):] += [-120.0, 80.0]
     return handles, targets, len(head)
+
+
+@pytest.fixture(scope="session")
+def horse_drag(horse_graph):
+    """Hooves pinned, head dragged up and back by a third of the horse's size."""
+    return hooves_and_head(horse_graph.points)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import solver
-from conftest import disk, glyph_rings, region
+from conftest import disk, glyph_rings, hooves_and_head, region
 
 
 def flipped(graph, positions):
@@ -322,12 +322,7 @@ def test_large_graph_keeps_its_area_and_opens_its_folds(fine_horse):
     assert abs(graph.area(pose.positions) / graph.area() - 1.0) <= 1e-9
     assert np.all(np.diff(pose.energies) <= 0.0)
     # Hooves pinned, head pulled back: the paper's energy folds 119 triangles here.
-    points = graph.points
-    hooves = [region(points, c, 12.0) for c in [(60, 20), (125, 28), (262, 22), (285, 18)]]
-    head = region(points, (370, 240), 20.0)
-    handles = np.concatenate(hooves + [head])
-    targets = points[handles].copy()
-    targets[-len(head):] += [-120.0, 80.0]
+    handles, targets, _ = hooves_and_head(graph.points)
     plain = solver.Deformer(graph, handles).solve(targets)
     pose = solver.Deformer(graph, handles, prevent_flips=True).solve(targets)
     assert flipped(graph, plain.positions) > 0
