@@ -224,7 +224,7 @@ class Energy:
             The fitted rotations and edge lengths, which the Newton matrix
             (:mod:`solver.hessian`) is built from at the same pose.
         """
-        fit = self._fit(rows)
+        fit = self.fit(rows)
         residual = np.empty_like(rows)
         curve, lengths = self.curve_rows, self.length_rows
         mvc = slice(curve.stop, lengths.start)
@@ -265,9 +265,14 @@ class Energy:
         rows = np.ascontiguousarray(np.asarray(rows_now, dtype=np.float64).T)
         return (rows - self.residual(rows)).T
 
-    def _fit(self, rows):
-        """Rotation of each boundary vertex fitted to its three curve rows (2D Procrustes), and
-        the inner edges' current lengths."""
+    def fit(self, rows):
+        """The local fit alone: each boundary vertex's rotation fitted to its three curve rows
+        (2D Procrustes) and the inner edges' current lengths, from ``A V`` ((2, r)).
+
+        Returns
+        -------
+        LocalFit
+        """
         rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
         now_x, now_y = rows[0, self.curve_rows], rows[1, self.curve_rows]
         cos = np.bincount(self._groups, weights=rest_x * now_x + rest_y * now_y, minlength=self._group_count)
@@ -282,24 +287,6 @@ class Energy:
         edge = rows[:, self.length_rows]
         edge_x, edge_y = edge
         return LocalFit(cos, sin, norm, np.sqrt(edge_x * edge_x + edge_y * edge_y))
-
-    def curve_rotations(self, rows):
-        """Rotation of each boundary vertex fitted to its three curve rows (2D Procrustes).
-
-        Parameters
-        ----------
-        rows : (2, r) float ndarray
-            ``A @ V``, coordinate-major.
-
-        Returns
-        -------
-        cos, sin : (m,) float64 ndarray
-            The rotation angle's cosine and sine (identity where undefined).
-        norm : (m,) float64 ndarray
-            ``|sum_k t_k . d_k, sum_k t_k x d_k|``; the fitted rotation maximises the first.
-        """
-        fit = self._fit(rows)
-        return fit.cos, fit.sin, fit.procrustes
 
     def evaluate(self, positions):
         """Energy and residual at ``positions``.

@@ -103,7 +103,6 @@ class Hessian:
         shape = coo_matrix((np.ones(len(all_rows)), (all_rows, all_cols)), shape=(2 * f, 2 * f)).tocsc()
         shape.sum_duplicates()
         shape.sort_indices()
-        self._pattern = shape
         keys = shape.indices.astype(np.int64) + shape.shape[0] * np.repeat(
             np.arange(shape.shape[1], dtype=np.int64), np.diff(shape.indptr))
         locate = lambda r, c: np.searchsorted(keys, r + shape.shape[0] * c)
@@ -158,7 +157,7 @@ class Hessian:
             Reused by the next call: copy it to keep it.
         """
         if fit is None:
-            fit = self.energy.local_step(rows)[1]
+            fit = self.energy.fit(rows)
         products = self._products
         edges, groups = self._edge_products, self._group_products
         c, a, b = self._edge_terms(rows, fit)
