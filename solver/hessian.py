@@ -149,7 +149,7 @@ class Hessian:
             :meth:`solver.folds.FoldPenalty.terms` at the same pose, for a Hessian built with
             ``triangles``; None when no triangle is squeezed.
         fit : solver.energy.LocalFit, optional
-            :meth:`~solver.energy.Energy.local_step`'s fit at the same pose, if already made.
+            :meth:`~solver.energy.Energy.fit` at the same pose, if already made.
 
         Returns
         -------
@@ -184,10 +184,7 @@ class Hessian:
         energy = self.energy
         edge_x, edge_y = rows[0, energy.length_rows], rows[1, energy.length_rows]
         length = fit.edge_length
-        if length.min(initial=1.0) > 0.0:
-            inverse = 1.0 / length
-        else:
-            inverse = np.divide(1.0, length, out=np.zeros_like(length), where=length > 0)
+        inverse = np.divide(1.0, length, out=np.zeros_like(length), where=length > 0)
         coefficient = np.minimum(1.0 - CLAMP, energy.rest_length * inverse)  # 0 where collapsed
         inverse *= energy.edge_scale
         return coefficient, -edge_y * inverse, edge_x * inverse
