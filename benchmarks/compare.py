@@ -34,7 +34,7 @@ from matplotlib.collections import PolyCollection  # noqa: E402
 import solver  # noqa: E402
 from benchmarks import metrics, peers  # noqa: E402
 from benchmarks.shapes import DRAGS, SHAPES, drag_targets  # noqa: E402
-from solver.deformer import NEWTON_MAX_POINTS, TWO_GRID_MAX_POINTS  # noqa: E402
+from solver.deformer import COARSE_START_POINTS, TWO_GRID_MAX_POINTS  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -565,7 +565,7 @@ def write_doc(path, rows, fig3, zero_note, fig4, width, fig5, scale_rows, args, 
       "factor (`deformer._hessian.solve` on both coordinates' right-hand sides), the floor under any "
       "iteration of the paper's method. libigl ARAP with 10 iterations and Blender Laplacian "
       "Deform with 1 for reference. \"Newton steps\" counts our refactorisations: above "
-      f"{NEWTON_MAX_POINTS} points the fine factor is the paper's fixed one and these are "
+      f"{COARSE_START_POINTS} points the fine factor is the paper's fixed one and these are "
       "refactorisations of the two-grid preconditioner's small coarse Newton matrix "
       f"(`solver/two_grid.py`); above {TWO_GRID_MAX_POINTS} the paper's factor alone is iterated "
       "from a coarse copy's pose (no refactorisation), so the solve time bends down there.")
@@ -651,7 +651,7 @@ def where_peers_win(rows, fig4):
     if flipping:
         lines.append(
             "* Where our flips come from: the start (the as-similar-as-possible pose; above "
-            f"{NEWTON_MAX_POINTS} points the coarse copy's) has "
+            f"{COARSE_START_POINTS} points the coarse copy's) has "
             + ", ".join(f"{r['start flips']}" for r in flipping)
             + " flipped triangles in those cases, the returned pose "
             + ", ".join(f"{r['flips']}" for r in flipping)

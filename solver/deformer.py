@@ -5,14 +5,15 @@ eliminated. Moving handles only changes right-hand sides.
 
 The paper iterates ``V <- (A^T A)^-1 A^T b(V)`` (equation 9): a preconditioned gradient step on
 ``E(V) = ||A V - b(V)||^2`` with a matrix that treats turning an edge as stiff, so free limbs
-creep toward their pose over hundreds of iterations. We start from the as-similar-as-possible
-pose (one linear solve that turns free limbs with what they hang from), take a few projected
-Newton steps (:mod:`solver.hessian`: one numeric refactorisation each, the symbolic analysis is
-shared), then continue with L-BFGS using the last factor as its initial Hessian, so later
-iterations cost one back-substitution as in the paper. A backtracking line search makes every
-iteration lower the energy. Large graphs, whose Newton matrix is too costly to refactor, start
-from the pose of a coarse copy of the shape and take the same steps with a two-grid
-preconditioner (:mod:`solver.two_grid`) in the Newton factor's place.
+creep toward their pose over hundreds of iterations. We keep that matrix, factorised once per
+handle set, and add what it misses: a Newton correction on a coarse copy of the shape
+(:mod:`solver.two_grid`), whose small matrix follows the pose. L-BFGS uses the two as its
+initial inverse Hessian, so an iteration costs one back-substitution with the paper's factor
+plus one with the coarse one, and a backtracking line search makes every iteration lower the
+energy. Solves start from the as-similar-as-possible pose (one linear solve that turns free
+limbs with what they hang from), or on large graphs from the pose of the coarse copy.
+``newton=True`` takes projected Newton steps on the whole graph instead (:mod:`solver.hessian`:
+one numeric refactorisation each, the symbolic analysis shared).
 
 With ``preserve_area`` the total area is a hard constraint (section 5). Each iteration makes one
 extra solve ``d = H^-1 J^T`` as the paper does with ``(A^T A)^-1 J^T``; the step is projected onto
@@ -20,7 +21,7 @@ the constraint's tangent in that metric and, since area is quadratic in the posi
 correction along ``d`` is a root of a quadratic: the area is met to rounding at every iterate.
 
 With ``prevent_flips`` the energy gains the fold penalty of :mod:`solver.folds`, with its
-Gauss-Newton terms in the Newton matrix.
+Gauss-Newton terms in the whole-graph Newton matrix (the two-grid leaves them to L-BFGS).
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from .energy import Energy, similarity_rows
 from .folds import FoldPenalty
 from .graph import build_graph
 from .hessian import Hessian, PaperMatrix
+from .outline import outline_graph
 from .two_grid import TwoGrid
 
 __all__ = ["Deformer", "Solution", "DEFAULT_MAX_ITERATIONS", "DEFAULT_TOLERANCE"]
@@ -45,15 +47,26 @@ __all__ = ["Deformer", "Solution", "DEFAULT_MAX_ITERATIONS", "DEFAULT_TOLERANCE"
 DEFAULT_MAX_ITERATIONS = 30
 # Stop when the next step would move no point more than this fraction of the shape's size.
 DEFAULT_TOLERANCE = 1e-4
-# Newton steps (refactorisations) at most per solve, taken while steps are larger than
-# NEWTON_UNTIL times the shape's size; then L-BFGS reuses the last factor.
+# Refreshes of the pose-dependent matrix at most per solve (the two-grid's coarse Newton matrix
+# or, with newton=True, the whole Newton matrix), made while steps are larger than NEWTON_UNTIL
+# times the shape's size; then L-BFGS reuses the last one.
 NEWTON_STEPS = 4
 NEWTON_UNTIL = 1e-2
-# Above this many points the coupled Newton matrix fills in too much to refactor (at ~5,000
-# points a refactorisation costs ~90 ms, 17 back-substitutions): such graphs iterate with the
-# two-grid preconditioner of solver.two_grid (the paper's constant matrix, factorised once,
-# plus a Newton correction on a coarse copy of the shape, refactorised like the Newton matrix).
-NEWTON_MAX_POINTS = 3000
+# Up to this many points the solve starts from the as-similar-as-possible pose; above, from the
+# pose of a coarse copy of the shape (_CoarseStart), which is also the two-grid's coarse level.
+COARSE_START_POINTS = 3000
+# Interior points of the two-grid's coarse copy below COARSE_START_POINTS (with its boundary
+# resampled to the same spacing: 160-356 points in all on the benchmark shapes). 30 took up to
+# 20 iterations on the benchmark drags, 120 made each refresh dearer for the same iterations.
+COARSE_INTERIOR = 60
+# Outline detail the coarse copy keeps, in units of its spacing. Small curved holes near a drag
+# (the character's eyes) need it: at 0.02, their 16-point coarse rings left that drag at 14
+# iterations; at 0.005, 10 (coarse copy 356 points instead of 235). Polygonal outlines (the
+# traced horse, glyphs) simplify the same either way.
+COARSE_DETAIL = 0.005
+# A graph whose coarse copy would not be this many times smaller is its own coarse level: the
+# two-grid would cost more than the Newton matrix it approximates.
+COARSE_RATIO = 2
 # Above this many points the two-grid's coarse graph (a few hundred points) is too coarse to
 # help: on 15,000- and 55,000-point horses its solves reached no lower energy than the paper's
 # matrix alone in the same iterations, at 1.3x the time. Such graphs iterate the paper's
@@ -171,15 +184,18 @@ class Deformer:
     preserve_area : bool
         Keep the total area (islands minus holes) equal to the rest area.
     newton : bool, optional
-        ``True``: each solve takes up to ``NEWTON_STEPS`` projected Newton steps, each a numeric
-        refactorisation (the symbolic analysis is shared), then L-BFGS; converges in ~10
-        iterations. ``False``: the paper's way, ``A_f^T A_f`` factorised once here and never
-        again (moving handles only changes right-hand sides), L-BFGS on it from the pose of a
-        coarse copy of the shape; cheaper per iteration, slower to turn free limbs. ``None``
-        (default): ``True`` up to ``NEWTON_MAX_POINTS`` points; up to ``TWO_GRID_MAX_POINTS``,
-        L-BFGS on the two-grid preconditioner of :mod:`solver.two_grid`, whose fine factor is
-        ``A_f^T A_f`` and whose small coarse Newton matrix is refactorised as the Newton matrix
-        would be; above, ``False``.
+        ``None`` (default): L-BFGS with the two-grid preconditioner of :mod:`solver.two_grid`.
+        Its fine factor, ``A_f^T A_f``, is made here and never again, so moving handles only
+        changes right-hand sides of the shape's system; what follows the pose is a Newton
+        matrix on a coarse copy of the shape (a few hundred points), refactorised at most
+        ``NEWTON_STEPS`` times per solve. Up to ``COARSE_START_POINTS`` points a solve starts
+        from the as-similar-as-possible pose; above, from the coarse copy's pose, and above
+        ``TWO_GRID_MAX_POINTS`` it iterates ``A_f^T A_f`` alone. A graph too small to have a
+        coarser copy is its own coarse level (the Newton matrix below).
+        ``True``: up to ``NEWTON_STEPS`` projected Newton steps on the whole graph, each a
+        numeric refactorisation (the symbolic analysis is shared), then L-BFGS.
+        ``False``: the paper's way, L-BFGS on ``A_f^T A_f`` alone from the pose of a coarse
+        copy of the shape; cheapest per iteration, slow to turn free limbs.
     prevent_flips : bool
         The paper's energy admits poses with folded (inverted) triangles in large bends (where a
         dragged region meets the rest, typically). With this on, triangles squeezed below a
@@ -234,9 +250,8 @@ class Deformer:
             if self.prevent_flips:
                 self._folds = FoldPenalty(graph, self.free, self._fixed)
             self._coarse = None
-            if newton or (newton is None and graph.n <= NEWTON_MAX_POINTS):
-                self._hessian = Hessian(self.energy, self.free,
-                                        None if self._folds is None else graph.triangles)
+            if newton or (newton is None and graph.n <= COARSE_START_POINTS):
+                self._hessian = self._newton_or_two_grid(newton)
             else:
                 self._coarse = _CoarseStart(graph, handles, weights, preserve_area, self.prevent_flips)
                 if newton is None and graph.n <= TWO_GRID_MAX_POINTS:
@@ -262,6 +277,21 @@ class Deformer:
         self._area = _AreaConstraint(graph, self.free, self._fixed) if self.preserve_area else None
         if self._area is not None and not np.isin(graph.boundary, self.free).any():
             raise ValueError("preserve_area needs at least one boundary point that is not a handle")
+
+    def _newton_or_two_grid(self, newton):
+        """The two-grid on a coarse copy of about ``COARSE_INTERIOR`` interior points, or the
+        Newton matrix with ``newton=True`` or on a graph with no copy ``COARSE_RATIO`` times
+        coarser (it is then as small as a coarse level)."""
+        graph = self.graph
+        if not newton and graph.n >= COARSE_RATIO * COARSE_INTERIOR:
+            try:
+                coarse = outline_graph([graph.points[loop] for loop in graph.boundary_loops], COARSE_INTERIOR,
+                                       COARSE_DETAIL)
+            except ValueError:  # an outline the coarse copy cannot be built from
+                coarse = None
+            if coarse is not None and COARSE_RATIO * coarse.n <= graph.n:
+                return TwoGrid(self.energy, self.free, bind(coarse, graph.points).weights[self.free])
+        return Hessian(self.energy, self.free, None if self._folds is None else graph.triangles)
 
     def _start(self, targets, initial):
         rest = self.graph.points
@@ -479,7 +509,7 @@ class Deformer:
 
 class _CoarseStart:
     """The pose of a coarse copy of the shape, carried to a large graph's points: the start of
-    every solve above ``NEWTON_MAX_POINTS``.
+    every solve above ``COARSE_START_POINTS``.
 
     A graph of a few hundred points built from the same boundary solves with Newton steps in
     milliseconds and gets the turns of whole limbs right; the fine iterations then fix local

@@ -162,10 +162,11 @@ def simplify_rings(rings, tolerance):
     return [ring for island in geometry_rings(simplified) for ring in island]
 
 
-def outline_graph(rings, count):
+def outline_graph(rings, count, detail=0.02):
     """The paper's graph for ``rings`` with about ``count`` interior points and a boundary
-    resampled to the same spacing (see :func:`simplify_rings`)."""
+    resampled to the same spacing (see :func:`simplify_rings`), keeping outline detail down to
+    ``detail`` times that spacing."""
     from .graph import build_graph
 
     spacing = spacing_for_count(rings, count)
-    return build_graph(simplify_rings(rings, 0.02 * spacing), spacing)
+    return build_graph(simplify_rings(rings, detail * spacing), spacing)

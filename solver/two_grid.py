@@ -1,29 +1,32 @@
-"""A two-grid preconditioner for large graphs: the paper's constant matrix plus a coarse Newton
-correction.
+"""A two-grid preconditioner: the paper's constant matrix plus a Newton correction on a coarse
+copy of the shape.
 
-Above ``NEWTON_MAX_POINTS`` points the Newton matrix of :mod:`solver.hessian` fills in too much
-to refactor on every solve. The paper's constant matrix ``K = A_f^T A_f`` (equation 9) factors
+Refactoring the Newton matrix of :mod:`solver.hessian` on every solve breaks the paper's promise
+that moving handles only changes right-hand sides, and above a few thousand points it fills in
+too much to be affordable anyway. The paper's constant matrix ``K = A_f^T A_f`` (equation 9) factors
 once, and it settles local detail (high frequencies) in a few iterations, but it treats turning
 an edge as stiff, so the smooth, large-scale turns of whole limbs (low frequencies) crawl.
 
-A coarse copy of the shape (a few hundred points, already built for the start pose) spans
-exactly those smooth motions: its binding ``P`` carries a coarse displacement to every fine
+A coarse copy of the shape (a few hundred points; see ``solver.deformer``) spans exactly those
+smooth motions: its binding ``P`` carries a coarse displacement to every fine
 point, piecewise linearly. The Galerkin matrix ``P^T H P`` of the fine Newton matrix ``H`` is
 small, so refactoring it costs what a Newton step on a paper-size shape costs, and a correction
 through it turns limbs as Newton does, measured against the fine graph's own energy.
 
-The two are combined as a symmetric two-grid cycle (coarse correction, a solve with ``K``,
-coarse correction again), a fixed symmetric positive definite operator between refreshes, which
-L-BFGS uses as its initial inverse Hessian just as it uses a Newton factor on small graphs.
-``H <= K`` (:mod:`solver.hessian` clamps every softening below 1), so ``K`` is a convergent
-smoother and the cycle is positive definite.
+The two are combined as a cycle: a coarse correction, then a solve with ``K`` on what it left,
+which L-BFGS uses as its initial inverse Hessian just as it uses a Newton factor on small graphs.
+The cycle's error propagation is ``E = (I - K^-1 H)(I - P H_c^-1 P^T H)``: a projection that is
+orthogonal in ``H``'s inner product times a map whose ``H``-norm is below 1, because ``H <= K``
+(:mod:`solver.hessian` clamps every softening below 1). So ``||E||_H < 1``, and for any gradient
+``g = H e`` the direction satisfies ``g^T M g = e^T H e - e^T H E e > 0``: the cycle is not
+symmetric, but it always gives a descent direction, and BFGS updates keep that property.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import qdldl
-from scipy.sparse import block_diag, coo_matrix, csc_matrix
+from scipy.sparse import block_diag, coo_matrix, csc_matrix, csr_matrix
 
 from .hessian import Hessian, PaperMatrix
 
@@ -67,15 +70,14 @@ class TwoGrid:
         self._down = self._up.T.tocsr()
         self._galerkin, self._coarse_upper, self._diagonal_slots = _galerkin_map(
             self._newton.pattern, self._up)
-        self._upper = None           # fine Newton matrix, upper triangle (csc)
-        self._diagonal = None
+        self._full, self._from_upper = _symmetric_pattern(self._newton.pattern)
         self._factor = None
 
     def factorize(self, rows, fold_terms=None, fit=None):
         """Rebuild the coarse correction from the fine Newton matrix at the pose with
         ``A V = rows`` ((2, r)); arguments as for :meth:`Hessian.matrix`."""
         upper = self._newton.matrix(rows, fold_terms, fit)
-        self._upper, self._diagonal = upper, upper.diagonal()
+        self._full.data[:] = upper.data[self._from_upper]
         values = self._coarse_upper.data
         values[:] = self._galerkin @ upper.data
         diagonal = self._diagonal_slots
@@ -85,19 +87,40 @@ class TwoGrid:
         else:
             self._factor.update(self._coarse_upper, upper=True)
 
-    def _times_newton(self, x):
-        upper = self._upper
-        return upper @ x + upper.T @ x - self._diagonal * x
-
     def _coarse_correction(self, residual):
         return self._up @ self._factor.solve(self._down @ residual)
 
     def solve(self, rhs):
-        """Apply the two-grid cycle to ``rhs`` ((2 f,), stacked); returns (2 f,)."""
+        """Apply the two-grid cycle to ``rhs`` ((2 f,), stacked); returns (2 f,).
+
+        A coarse correction, then one solve with ``K`` on what it left. A second coarse
+        correction after the ``K`` solve (the symmetric cycle) took the same iterations on every
+        benchmark drag at the cost of one more product with the fine matrix and one more coarse
+        solve.
+        """
         x = self._coarse_correction(rhs)
-        x += self._smoother.solve(rhs - self._times_newton(x))
-        x += self._coarse_correction(rhs - self._times_newton(x))
+        x += self._smoother.solve(rhs - self._full @ x)
         return x
+
+
+def _symmetric_pattern(upper):
+    """The whole symmetric matrix of an upper triangle's pattern, and where each of its values
+    comes from in the triangle's ``data``, so a refresh is one gather and a product one mat-vec.
+
+    Returns
+    -------
+    full : (m, m) scipy.sparse.csr_matrix
+    from_upper : (nnz,) int ndarray
+    """
+    upper = upper.tocoo()
+    mirror = upper.row != upper.col
+    rows = np.concatenate([upper.row, upper.col[mirror]])
+    columns = np.concatenate([upper.col, upper.row[mirror]])
+    source = np.concatenate([np.arange(upper.nnz), np.flatnonzero(mirror)])
+    order = np.lexsort((columns, rows))
+    indptr = np.searchsorted(rows[order], np.arange(upper.shape[0] + 1))
+    full = csr_matrix((np.zeros(len(order)), columns[order], indptr), shape=upper.shape)
+    return full, source[order]
 
 
 def _galerkin_map(fine_upper, up):

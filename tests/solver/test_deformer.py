@@ -47,6 +47,26 @@ def test_default_solve_is_converged_within_15_iterations(horse_graph, horse_drag
     assert flipped(horse_graph, pose.positions) == 0
 
 
+def test_moving_handles_never_refactorises_the_shapes_matrix(horse_graph, horse_drag):
+    """The default keeps the paper's factor of the shape's matrix from one handle move to the
+    next, values and all; what follows the pose is a coarse matrix under half the size."""
+    handles, targets, _ = horse_drag
+    deformer = solver.Deformer(horse_graph, handles)
+    two_grid = deformer._hessian
+    factor = two_grid._smoother._factor
+    probe = np.linspace(1.0, 2.0, len(deformer.free))
+    before = factor.solve(probe)
+    rest = horse_graph.points[handles]
+    for t in (0.25, 0.5, 1.0, 0.75):
+        moved = rest + (targets - rest) * t
+        pose = deformer.solve(moved)
+        assert pose.converged and np.array_equal(pose.positions[handles], moved)
+        assert 1 <= pose.factorizations <= solver.deformer.NEWTON_STEPS
+        assert two_grid._smoother._factor is factor
+        assert np.array_equal(factor.solve(probe), before)
+    assert 2 * two_grid._coarse_upper.shape[0] <= 2 * len(deformer.free)  # both stacked [x; y]
+
+
 def test_tolerance_zero_runs_exactly_max_iterations(horse_graph, horse_drag):
     handles, targets, _ = horse_drag
     pose = solver.Deformer(horse_graph, handles).solve(targets, max_iterations=40, tolerance=0.0)
@@ -233,14 +253,15 @@ def test_a_point_in_no_triangle_starts_at_rest_and_stays_finite():
 
 
 def test_large_graph_path_converges_from_a_coarse_start(horse_graph, horse_drag, monkeypatch):
-    """Above NEWTON_MAX_POINTS the solve iterates with the two-grid preconditioner: the fine
-    constant factor is never refactorised, only the small coarse one; exercised here on the
-    horse by lowering the threshold."""
+    """Above COARSE_START_POINTS the solve starts from the coarse copy's pose and iterates with
+    the two-grid preconditioner on that copy: the fine constant factor is never refactorised,
+    only the small coarse one; exercised here on the horse by lowering the threshold."""
     import solver.deformer
 
     handles, targets, _ = horse_drag
-    newton = solver.Deformer(horse_graph, handles).solve(targets, tolerance=1e-8, max_iterations=200)
-    monkeypatch.setattr(solver.deformer, "NEWTON_MAX_POINTS", 10)
+    newton = solver.Deformer(horse_graph, handles, newton=True).solve(
+        targets, tolerance=1e-8, max_iterations=200)
+    monkeypatch.setattr(solver.deformer, "COARSE_START_POINTS", 10)
     deformer = solver.Deformer(horse_graph, handles)
     fine_factor = deformer._hessian._smoother._factor
     for t in (0.5, 1.0):
@@ -259,7 +280,7 @@ def test_very_large_graphs_keep_the_papers_factor(horse_graph, horse_drag, monke
     import solver.deformer
 
     handles, targets, _ = horse_drag
-    monkeypatch.setattr(solver.deformer, "NEWTON_MAX_POINTS", 10)
+    monkeypatch.setattr(solver.deformer, "COARSE_START_POINTS", 10)
     monkeypatch.setattr(solver.deformer, "TWO_GRID_MAX_POINTS", 20)
     pose = solver.Deformer(horse_graph, handles).solve(targets)
     assert pose.factorizations == 0
@@ -269,10 +290,10 @@ def test_very_large_graphs_keep_the_papers_factor(horse_graph, horse_drag, monke
 
 @pytest.fixture(scope="module")
 def fine_horse(horse_rings):
-    """The horse at about 6,000 graph points, above NEWTON_MAX_POINTS; the region around its
+    """The horse at about 6,000 graph points, above COARSE_START_POINTS; the region around its
     lowest point pinned, the region around its highest point dragged by a third of its size."""
     graph = solver.build_graph(horse_rings, spacing=3.0)
-    assert graph.n > solver.deformer.NEWTON_MAX_POINTS
+    assert graph.n > solver.deformer.COARSE_START_POINTS
     points, size = graph.points, graph.size
     pinned = region(points, points[np.argmin(points[:, 1])], 0.06 * size)
     dragged = region(points, points[np.argmax(points[:, 1])], 0.06 * size)
