@@ -128,7 +128,7 @@ class Energy:
         n = graph.n
         rest = graph.points
 
-        curve, self._groups, self.curve_points = self._curve_rows(graph)
+        curve, self.curve_points = self._curve_rows(graph)
         mvc = self._mean_value_rows(graph)
         lengths, self.length_edges = self._length_rows(graph)
         scale = {key: np.sqrt(value) for key, value in self.weights.items()}
@@ -142,25 +142,23 @@ class Energy:
 
         rest_rows = self.matrix @ rest
         self.curve_rest = rest_rows[self.curve_rows].copy()
-        self._curve_rest_x = np.ascontiguousarray(self.curve_rest[:, 0])
-        self._curve_rest_y = np.ascontiguousarray(self.curve_rest[:, 1])
+        # Each boundary vertex's three rows are consecutive: (m, 3) views group them.
+        self._curve_rest_x = np.ascontiguousarray(self.curve_rest[:, 0]).reshape(-1, 3)
+        self._curve_rest_y = np.ascontiguousarray(self.curve_rest[:, 1]).reshape(-1, 3)
         rest_edge = rest_rows[self.length_rows]
         self.rest_length = np.linalg.norm(rest_edge, axis=1)
         self._rest_direction = np.ascontiguousarray(
             (rest_edge / np.maximum(self.rest_length, 1e-300)[:, None]).T)
-        self._group_count = len(graph.boundary)
         self.n = n
 
     @staticmethod
     def _curve_rows(graph):
         """Curve Laplacian (eq. 1) and the two curve edges at each boundary vertex (sec. 4.2)."""
-        rows, cols, vals, groups, corners = [], [], [], [], []
+        rows, cols, vals, corners = [], [], [], []
         row = 0
-        group = 0
         for loop in graph.boundary_loops:
             m = len(loop)
             here, before, after = loop, np.roll(loop, 1), np.roll(loop, -1)
-            g = group + np.arange(m)
             r = row + 3 * np.arange(m)
             # Laplacian row: v_i - (v_{i-1} + v_{i+1}) / 2
             rows += [r, r, r]
@@ -170,13 +168,11 @@ class Energy:
             rows += [r + 1, r + 1, r + 2, r + 2]
             cols += [after, here, before, here]
             vals += [np.ones(m), -np.ones(m), np.ones(m), -np.ones(m)]
-            groups.append(np.repeat(g, 3))
             corners.append(np.stack([here, before, after], axis=1))
             row += 3 * m
-            group += m
         matrix = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                             shape=(row, graph.n))
-        return matrix, np.concatenate(groups), np.concatenate(corners)
+        return matrix, np.concatenate(corners)
 
     @staticmethod
     def _mean_value_rows(graph):
@@ -230,10 +226,12 @@ class Energy:
         mvc = slice(curve.stop, lengths.start)
         residual[:, mvc] = rows[:, mvc]  # mean value rows have target zero
         # Each boundary vertex's three rest rows, turned by its fitted rotation (section 4.2).
-        cos, sin = np.repeat(fit.cos, 3), np.repeat(fit.sin, 3)
+        cos, sin = fit.cos[:, None], fit.sin[:, None]
         rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
-        residual[0, curve] = rows[0, curve] - (cos * rest_x - sin * rest_y)
-        residual[1, curve] = rows[1, curve] - (sin * rest_x + cos * rest_y)
+        now = rows[:, curve].reshape(2, -1, 3)
+        turned = residual[:, curve].reshape(2, -1, 3)  # a view: written through
+        np.subtract(now[0], cos * rest_x - sin * rest_y, out=turned[0])
+        np.subtract(now[1], sin * rest_x + cos * rest_y, out=turned[1])
         # Nearest vector of rest length for each inner edge (eq. 4's e(v_i, v_j)).
         edge = rows[:, lengths]
         length = fit.edge_length
@@ -274,9 +272,9 @@ class Energy:
         LocalFit
         """
         rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
-        now_x, now_y = rows[0, self.curve_rows], rows[1, self.curve_rows]
-        cos = np.bincount(self._groups, weights=rest_x * now_x + rest_y * now_y, minlength=self._group_count)
-        sin = np.bincount(self._groups, weights=rest_x * now_y - rest_y * now_x, minlength=self._group_count)
+        now_x, now_y = rows[:, self.curve_rows].reshape(2, -1, 3)
+        cos = (rest_x * now_x + rest_y * now_y).sum(axis=1)
+        sin = (rest_x * now_y - rest_y * now_x).sum(axis=1)
         norm = np.sqrt(cos * cos + sin * sin)  # np.hypot is 3x slower here
         if norm.min(initial=1.0) > 0.0:
             cos, sin = cos / norm, sin / norm
