@@ -42,12 +42,18 @@ class Hessian:
     free : (f,) int ndarray
         Indices of the free points (not handles).
 
+    triangles : (t, 3) int ndarray, optional
+        With the fold penalty: its triangles, whose terms :meth:`matrix` then takes.
+    upper : bool
+        Keep the upper triangle (for factorising) or, with False, the whole symmetric matrix
+        (for products with it).
+
     Notes
     -----
     Unknowns are stacked ``[x of free points; y of free points]`` (length ``2 f``).
     """
 
-    def __init__(self, energy, free, triangles=None):
+    def __init__(self, energy, free, triangles=None, upper=True):
         self.energy = energy
         n = energy.n
         f = len(free)
@@ -92,24 +98,26 @@ class Hessian:
                 signs.append(np.ones(count * k * k))
                 offset += count * k * k
         rows, cols = np.concatenate(rows), np.concatenate(cols)
-        keep = (rows >= 0) & (cols >= 0) & (rows <= cols)
+        keep = (rows >= 0) & (cols >= 0)
+        if upper:
+            keep &= rows <= cols
         rows, cols = rows[keep], cols[keep]
         flat_index, signs = np.concatenate(flat_index)[keep], np.concatenate(signs)[keep]
-        upper = triu(base, format="coo")
+        stored = triu(base, format="coo") if upper else base.tocoo()
         # Build the pattern from coordinates only: adding sparse matrices is not safe here, as
         # scipy's sum assumes canonical (sorted, duplicate-free) operands and triu's are not.
-        all_rows = np.concatenate([upper.row, rows]).astype(np.int64)
-        all_cols = np.concatenate([upper.col, cols]).astype(np.int64)
+        all_rows = np.concatenate([stored.row, rows]).astype(np.int64)
+        all_cols = np.concatenate([stored.col, cols]).astype(np.int64)
         shape = coo_matrix((np.ones(len(all_rows)), (all_rows, all_cols)), shape=(2 * f, 2 * f)).tocsc()
         shape.sum_duplicates()
         shape.sort_indices()
         keys = shape.indices.astype(np.int64) + shape.shape[0] * np.repeat(
             np.arange(shape.shape[1], dtype=np.int64), np.diff(shape.indptr))
         locate = lambda r, c: np.searchsorted(keys, r + shape.shape[0] * c)
-        self._base = np.bincount(locate(upper.row.astype(np.int64), upper.col.astype(np.int64)),
-                                 weights=upper.data, minlength=shape.nnz)
+        self._base = np.bincount(locate(stored.row.astype(np.int64), stored.col.astype(np.int64)),
+                                 weights=stored.data, minlength=shape.nnz)
         self._gather = csr_matrix((signs, (locate(rows, cols), flat_index)), shape=(shape.nnz, offset))
-        self._upper = csc_matrix((self._base.copy(), shape.indices, shape.indptr), shape=shape.shape)
+        self._stored = csc_matrix((self._base.copy(), shape.indices, shape.indptr), shape=shape.shape)
         self._factor = None
         # The products, laid out flat as the gather matrix reads them, written in place.
         self._products = np.zeros(offset)
@@ -134,12 +142,13 @@ class Hessian:
 
     @property
     def pattern(self):
-        """The upper triangle's sparsity, ``(2 f, 2 f)`` csc: :meth:`matrix` only ever fills in
-        the values of this one matrix, in this order."""
-        return self._upper
+        """The stored sparsity (upper triangle or whole), ``(2 f, 2 f)`` csc: :meth:`matrix` only
+        ever fills in the values of this one matrix, in this order."""
+        return self._stored
 
     def matrix(self, rows, fold_terms=None, fit=None):
-        """Upper triangle of the projected Hessian (halved) at the pose with ``A V = rows``.
+        """The projected Hessian (halved) at the pose with ``A V = rows``: its upper triangle, or
+        all of it for a Hessian made with ``upper=False``.
 
         Parameters
         ----------
@@ -175,8 +184,8 @@ class Hessian:
                 c, u = fold_terms
                 np.multiply((c[:, None] * u)[:, :, None], u[:, None, :], out=folds)
         # The pattern never changes: overwrite the values of one matrix rather than building one.
-        np.subtract(self._base, self._gather @ products, out=self._upper.data)
-        return self._upper
+        np.subtract(self._base, self._gather @ products, out=self._stored.data)
+        return self._stored
 
     def _edge_terms(self, rows, fit):
         """Coefficients (e,) and the scaled unit normal ``(a, b)`` of each edge: its u vector is

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 import qdldl
-from scipy.sparse import block_diag, coo_matrix, csc_matrix, csr_matrix
+from scipy.sparse import block_diag, coo_matrix, csc_matrix
 
 from .hessian import Hessian, PaperMatrix
 
@@ -62,7 +62,7 @@ class TwoGrid:
 
     def __init__(self, energy, free, prolongation):
         self._smoother = PaperMatrix(energy, free)
-        self._newton = Hessian(energy, free)  # assembled, never factored
+        self._newton = Hessian(energy, free, upper=False)  # the whole matrix, never factored
         prolongation = prolongation.tocsc()
         reached = np.flatnonzero(np.asarray(abs(prolongation).sum(axis=0)).ravel() > 0.0)
         columns = prolongation[:, reached]
@@ -70,16 +70,15 @@ class TwoGrid:
         self._down = self._up.T.tocsr()
         self._galerkin, self._coarse_upper, self._diagonal_slots = _galerkin_map(
             self._newton.pattern, self._up)
-        self._full, self._from_upper = _symmetric_pattern(self._newton.pattern)
+        self._full = None
         self._factor = None
 
     def factorize(self, rows, fold_terms=None, fit=None):
         """Rebuild the coarse correction from the fine Newton matrix at the pose with
         ``A V = rows`` ((2, r)); arguments as for :meth:`Hessian.matrix`."""
-        upper = self._newton.matrix(rows, fold_terms, fit)
-        self._full.data[:] = upper.data[self._from_upper]
+        self._full = self._newton.matrix(rows, fold_terms, fit)
         values = self._coarse_upper.data
-        values[:] = self._galerkin @ upper.data
+        values[:] = self._galerkin @ self._full.data
         diagonal = self._diagonal_slots
         values[diagonal] += _REGULARISATION * values[diagonal].max()
         if self._factor is None:
@@ -103,43 +102,28 @@ class TwoGrid:
         return x
 
 
-def _symmetric_pattern(upper):
-    """The whole symmetric matrix of an upper triangle's pattern, and where each of its values
-    comes from in the triangle's ``data``, so a refresh is one gather and a product one mat-vec.
+def _galerkin_map(fine, up):
+    """The linear map from the fine matrix's values to the coarse upper triangle's.
+
+    ``P^T H P`` with ``P = up`` (at most a few entries per row) is linear in ``H``'s values,
+    with a sparsity that never changes; as one sparse matrix it turns a refresh into a mat-vec.
+
+    Parameters
+    ----------
+    fine : (m, m) scipy.sparse.csc_matrix
+        The whole fine matrix's pattern; the map reads its ``data`` in this order.
+    up : (m, c) scipy.sparse matrix
 
     Returns
     -------
-    full : (m, m) scipy.sparse.csr_matrix
-    from_upper : (nnz,) int ndarray
-    """
-    upper = upper.tocoo()
-    mirror = upper.row != upper.col
-    rows = np.concatenate([upper.row, upper.col[mirror]])
-    columns = np.concatenate([upper.col, upper.row[mirror]])
-    source = np.concatenate([np.arange(upper.nnz), np.flatnonzero(mirror)])
-    order = np.lexsort((columns, rows))
-    indptr = np.searchsorted(rows[order], np.arange(upper.shape[0] + 1))
-    full = csr_matrix((np.zeros(len(order)), columns[order], indptr), shape=upper.shape)
-    return full, source[order]
-
-
-def _galerkin_map(fine_upper, up):
-    """The linear map from the fine upper triangle's values to the coarse one's.
-
-    ``P^T H P`` with ``H = U + U^T - diag(U)`` and ``P = up`` (at most a few entries per row) is
-    linear in ``U``'s values, with a sparsity that never changes; as one sparse matrix it turns
-    a refresh into a mat-vec.
-
-    Returns
-    -------
-    galerkin : (s, u) scipy.sparse.csr_matrix
-        Coarse upper-triangle values (csc order) from the fine ones (``fine_upper.data``).
+    galerkin : (s, nnz) scipy.sparse.csr_matrix
+        Coarse upper-triangle values (csc order) from the fine ones.
     coarse_upper : (c, c) scipy.sparse.csc_matrix
         The coarse upper triangle, values to be filled in.
     diagonal_slots : (c,) int ndarray
         Positions of its diagonal in ``coarse_upper.data``.
     """
-    fine = fine_upper.tocoo()
+    fine = fine.tocoo()
     up = up.tocsr()
     count = up.shape[1]
     # Each row of P padded to the same width (zero weights where shorter).
@@ -150,21 +134,17 @@ def _galerkin_map(fine_upper, up):
     index = np.zeros((up.shape[0], width), dtype=np.int64)
     weight = np.zeros((up.shape[0], width))
     index[owner, place], weight[owner, place] = up.indices, up.data
-    # Entry (i, j) of U with value h adds h P_i^T P_j to P^T U P, and P_j^T P_i when i != j
-    # (the same entry's mirror in U^T). Built in chunks of entries to bound the memory used.
+    # Entry (i, j) of H with value h adds h P_i^T P_j to P^T H P; the coarse upper triangle keeps
+    # the part with row <= column. Built in chunks of entries to bound the memory used.
     keys, weights, entries = [], [], []
     for first in range(0, fine.nnz, _CHUNK):
         chunk = np.arange(first, min(first + _CHUNK, fine.nnz))
         i, j = fine.row[chunk], fine.col[chunk]
         shape = (len(chunk), width, width)
-        a = np.broadcast_to(index[i][:, :, None], shape)
-        b = np.broadcast_to(index[j][:, None, :], shape)
-        w = weight[i][:, :, None] * weight[j][:, None, :]
-        entry = np.broadcast_to(chunk[:, None, None], shape)
-        mirror = i != j
-        a, b = np.concatenate([a.ravel(), b[mirror].ravel()]), np.concatenate([b.ravel(), a[mirror].ravel()])
-        w = np.concatenate([w.ravel(), w[mirror].ravel()])
-        entry = np.concatenate([entry.ravel(), entry[mirror].ravel()])
+        a = np.broadcast_to(index[i][:, :, None], shape).ravel()
+        b = np.broadcast_to(index[j][:, None, :], shape).ravel()
+        w = (weight[i][:, :, None] * weight[j][:, None, :]).ravel()
+        entry = np.broadcast_to(chunk[:, None, None], shape).ravel()
         keep = (w != 0.0) & (a <= b)
         keys.append(b[keep] * count + a[keep])           # (column, row): csc order
         weights.append(w[keep])
