@@ -21,7 +21,8 @@ the constraint's tangent in that metric and, since area is quadratic in the posi
 correction along ``d`` is a root of a quadratic: the area is met to rounding at every iterate.
 
 With ``prevent_flips`` the energy gains the fold penalty of :mod:`solver.folds`, with its
-Gauss-Newton terms in the whole-graph Newton matrix (the two-grid leaves them to L-BFGS).
+Gauss-Newton terms in the Newton matrices and, through a low-rank update, in the two-grid's
+smoother.
 """
 
 from __future__ import annotations
@@ -97,7 +98,9 @@ class Solution:
     converged : bool
         Whether the step fell below the tolerance before ``max_iterations``.
     factorizations : int
-        Numeric refactorisations of the Hessian (Newton steps) this solve made.
+        Numeric refactorisations this solve made of the matrix that follows the pose: the
+        two-grid's coarse Newton matrix by default, the whole Newton matrix with
+        ``newton=True``. The shape's own factor (``A_f^T A_f``) is never refactorised.
     """
 
     positions: np.ndarray
@@ -255,7 +258,8 @@ class Deformer:
             else:
                 self._coarse = _CoarseStart(graph, handles, weights, preserve_area, self.prevent_flips)
                 if newton is None and graph.n <= TWO_GRID_MAX_POINTS:
-                    self._hessian = TwoGrid(self.energy, self.free, self._coarse.binding.weights[self.free])
+                    self._hessian = TwoGrid(self.energy, self.free, self._coarse.binding.weights[self.free],
+                                            None if self._folds is None else graph.triangles)
                 else:
                     self._hessian = PaperMatrix(self.energy, self.free)
         if len(self.free) and self._coarse is None:
@@ -283,6 +287,7 @@ class Deformer:
         Newton matrix with ``newton=True`` or on a graph with no copy ``COARSE_RATIO`` times
         coarser (it is then as small as a coarse level)."""
         graph = self.graph
+        folds = None if self._folds is None else graph.triangles
         if not newton and graph.n >= COARSE_RATIO * COARSE_INTERIOR:
             try:
                 coarse = outline_graph([graph.points[loop] for loop in graph.boundary_loops], COARSE_INTERIOR,
@@ -290,8 +295,8 @@ class Deformer:
             except ValueError:  # an outline the coarse copy cannot be built from
                 coarse = None
             if coarse is not None and COARSE_RATIO * coarse.n <= graph.n:
-                return TwoGrid(self.energy, self.free, bind(coarse, graph.points).weights[self.free])
-        return Hessian(self.energy, self.free, None if self._folds is None else graph.triangles)
+                return TwoGrid(self.energy, self.free, bind(coarse, graph.points).weights[self.free], folds)
+        return Hessian(self.energy, self.free, folds)
 
     def _start(self, targets, initial):
         rest = self.graph.points

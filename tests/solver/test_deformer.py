@@ -67,6 +67,19 @@ def test_moving_handles_never_refactorises_the_shapes_matrix(horse_graph, horse_
     assert 2 * two_grid._coarse_upper.shape[0] <= 2 * len(deformer.free)  # both stacked [x; y]
 
 
+def test_a_graph_too_small_for_a_coarse_copy_is_its_own_coarse_level():
+    """A graph with fewer points than two coarse copies would have: the two-grid would cost more
+    than the Newton matrix it stands for, so that matrix is used (and still converges)."""
+    graph = solver.build_graph([disk(count=24)], spacing=0.3)
+    assert graph.n < 2 * solver.deformer.COARSE_INTERIOR
+    handles = np.flatnonzero(np.abs(graph.points[:, 0]) > 0.8)
+    deformer = solver.Deformer(graph, handles)
+    assert isinstance(deformer._hessian, solver.hessian.Hessian)
+    targets = graph.points[handles] * [1.3, 1.0]
+    pose = deformer.solve(targets)
+    assert pose.converged and np.array_equal(pose.positions[handles], targets)
+
+
 def test_tolerance_zero_runs_exactly_max_iterations(horse_graph, horse_drag):
     handles, targets, _ = horse_drag
     pose = solver.Deformer(horse_graph, handles).solve(targets, max_iterations=40, tolerance=0.0)

@@ -63,3 +63,56 @@ def test_fold_terms_add_the_penalty_gauss_newton_matrix():
             gradient[k] = (folds._areas(v + e)[1][t] - folds._areas(v - e)[1][t]) / (2 * step)
         expected += FOLD_WEIGHT / rest_area[t] * np.outer(gradient, gradient)
     assert np.abs(added - np.triu(expected)).max() <= 1e-6 * np.abs(expected).max()
+
+
+def test_two_grid_cycle_gives_descent_directions_and_its_coarse_matrix_is_galerkin():
+    """The default preconditioner is not symmetric, but ``g^T M g > 0`` for every ``g`` (see
+    solver.two_grid), and its coarse matrix is ``P^T H P`` of the whole Newton matrix."""
+    graph = solver.build_graph(glyph_rings("B"))
+    handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
+    deformer = solver.Deformer(graph, handles)
+    two_grid = deformer._hessian
+    pose = graph.points @ np.array([[0.8, -0.6], [0.6, 0.8]]).T * 1.2  # turned and stretched
+    rows = np.ascontiguousarray((deformer.energy.matrix @ pose).T)
+    two_grid.factorize(rows)
+    whole = solver.hessian.Hessian(deformer.energy, deformer.free).matrix(rows).toarray()
+    whole = whole + whole.T - np.diag(whole.diagonal())
+    up = two_grid._up.toarray()
+    coarse = two_grid._coarse_upper.toarray()
+    coarse = coarse + coarse.T - np.diag(coarse.diagonal())
+    galerkin = up.T @ whole @ up
+    assert np.abs(coarse - galerkin).max() <= 1e-8 * np.abs(galerkin).max()
+    rng = np.random.default_rng(3)
+    gradients = rng.normal(size=(50, whole.shape[0]))
+    gradients[:10] = np.linalg.eigh(whole)[1][:, :10].T  # the softest directions too
+    for g in gradients:
+        assert float(g @ two_grid.solve(g)) > 0.0
+
+
+def test_two_grid_takes_fold_terms_into_its_smoother_without_refactorising():
+    """Squeezed triangles' penalty terms ``G G^T`` go into the smoother as ``(K + G G^T)^-1``
+    (Woodbury, on the kept factor of K) and into the coarse matrix; directions stay descent."""
+    graph = solver.build_graph(glyph_rings("B"))
+    handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
+    deformer = solver.Deformer(graph, handles, prevent_flips=True)
+    two_grid = deformer._hessian
+    factor = two_grid._smoother._factor
+    rows = np.ascontiguousarray((deformer.energy.matrix @ graph.points).T)
+    inner = np.flatnonzero(np.isin(graph.triangles, deformer.free).all(axis=1))[:5]
+    coefficient = np.zeros(len(graph.triangles))
+    coefficient[inner] = -3.0
+    u = np.random.default_rng(5).normal(size=(len(graph.triangles), 6))
+    two_grid.factorize(rows, (coefficient, u))
+    assert two_grid._smoother._factor is factor
+    f = len(deformer.free)
+    slot = np.searchsorted(deformer.free, graph.triangles[inner])
+    g = np.zeros((2 * f, len(inner)))
+    for j in range(len(inner)):
+        g[np.concatenate([slot[j], slot[j] + f]), j] = np.sqrt(3.0) * u[inner[j]]
+    columns = deformer.energy.matrix.tocsc()[:, deformer.free]
+    k = (columns.T @ columns).toarray()
+    smoother = np.kron(np.eye(2), k) + g @ g.T
+    r = np.linspace(-1.0, 1.0, 2 * f)
+    assert np.allclose(two_grid._smooth(r), np.linalg.solve(smoother, r), rtol=1e-8, atol=1e-12)
+    for v in np.random.default_rng(6).normal(size=(20, 2 * f)):
+        assert float(v @ two_grid.solve(v)) > 0.0
