@@ -315,7 +315,7 @@ def figure_convergence(path):
         # The lowest energy any run reached stands in for the minimum.
         floor = min(min(ours_curve), min(plain_rest), min(plain_start))
         ax.semilogy(np.arange(len(ours_curve)), ours_curve, "o-", ms=3, color="tab:red",
-                    label="ours (Newton, then L-BFGS)")
+                    label="ours (two-grid L-BFGS)")
         ax.semilogy(plain_rest, color="tab:blue", label="paper's iteration (9) from rest")
         ax.semilogy(plain_start, "--", color="tab:blue", label="iteration (9) from our start")
         ax.set_xscale("symlog", linthresh=10)
@@ -564,11 +564,11 @@ def write_doc(path, rows, fig3, zero_note, fig4, width, fig5, scale_rows, args, 
       "solve = one full solve (default iterations); back-sub = one back-substitution with our "
       "factor (`deformer._hessian.solve` on both coordinates' right-hand sides), the floor under any "
       "iteration of the paper's method. libigl ARAP with 10 iterations and Blender Laplacian "
-      "Deform with 1 for reference. \"Newton steps\" counts our refactorisations: above "
-      f"{COARSE_START_POINTS} points the fine factor is the paper's fixed one and these are "
-      "refactorisations of the two-grid preconditioner's small coarse Newton matrix "
-      f"(`solver/two_grid.py`); above {TWO_GRID_MAX_POINTS} the paper's factor alone is iterated "
-      "from a coarse copy's pose (no refactorisation), so the solve time bends down there.")
+      "Deform with 1 for reference. \"Newton steps\" counts our refactorisations. The shape's "
+      "own factor is the paper's fixed one at every size; up to "
+      f"{TWO_GRID_MAX_POINTS} points these are refactorisations of the two-grid preconditioner's "
+      "small coarse Newton matrix (`solver/two_grid.py`), above it the paper's factor alone is "
+      "iterated from a coarse copy's pose (no refactorisation), so the solve time bends down there.")
     if not args.skip_large:
         w(" The ~50,000-point graph uses a single timed solve (no warm-up); `--skip-large` "
           "leaves it out if a future solver makes it slow.")

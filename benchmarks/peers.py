@@ -29,7 +29,8 @@ __all__ = ["Method", "ours", "linear_baseline", "plain_iteration", "libigl_arap"
 
 def fine_factor(deformer):
     """The factor one of ``deformer``'s iterations back-substitutes with, over the whole graph:
-    the Newton factor, or on large graphs the two-grid preconditioner's fine (paper's) factor."""
+    the two-grid preconditioner's fine (paper's) factor, or with ``newton=True`` (and on graphs
+    too small for a coarse copy) the Newton factor."""
     return getattr(deformer._hessian, "_smoother", deformer._hessian)
 
 
