@@ -41,7 +41,6 @@ class Hessian:
     energy : solver.energy.Energy
     free : (f,) int ndarray
         Indices of the free points (not handles).
-
     triangles : (t, 3) int ndarray, optional
         With the fold penalty: its triangles, whose terms :meth:`matrix` then takes.
     upper : bool
