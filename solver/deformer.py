@@ -27,6 +27,7 @@ smoother.
 
 from __future__ import annotations
 
+import hashlib
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -76,6 +77,9 @@ TWO_GRID_MAX_POINTS = 10000
 # The area constraint's curvature is not in the Newton matrix (adding it makes the matrix
 # indefinite), so constrained solves lean on more Newton steps.
 NEWTON_STEPS_WITH_AREA = 12
+# Coarse copies kept for graphs seen lately (see _coarse_copy).
+_COARSE_COPIES_KEPT = 8
+_COARSE_COPIES = {}
 # Curvature pairs kept by L-BFGS.
 HISTORY = 8
 # Armijo sufficient-decrease constant and the most halvings the line search tries.
@@ -289,13 +293,9 @@ class Deformer:
         graph = self.graph
         folds = None if self._folds is None else graph.triangles
         if not newton and graph.n >= COARSE_RATIO * COARSE_INTERIOR:
-            try:
-                coarse = outline_graph([graph.points[loop] for loop in graph.boundary_loops], COARSE_INTERIOR,
-                                       COARSE_DETAIL)
-            except ValueError:  # an outline the coarse copy cannot be built from
-                coarse = None
-            if coarse is not None and COARSE_RATIO * coarse.n <= graph.n:
-                return TwoGrid(self.energy, self.free, bind(coarse, graph.points).weights[self.free], folds)
+            copy = _coarse_copy(graph, COARSE_INTERIOR)
+            if copy is not None and COARSE_RATIO * copy[0].n <= graph.n:
+                return TwoGrid(self.energy, self.free, copy[1].weights[self.free], folds)
         return Hessian(self.energy, self.free, folds)
 
     def _start(self, targets, initial):
@@ -525,7 +525,7 @@ class _CoarseStart:
 
     def __init__(self, graph, handles, weights, preserve_area, prevent_flips):
         # The default spacing: a few hundred points, whatever the fine graph's density.
-        self.graph = build_graph([graph.points[loop] for loop in graph.boundary_loops])
+        self.graph, self.binding = _coarse_copy(graph)
         rest = graph.points[handles]
         # Each coarse point nearest a handle point follows that handle point's target.
         _, nearest = cKDTree(self.graph.points).query(rest)
@@ -533,11 +533,39 @@ class _CoarseStart:
         self.offset = self.graph.points[self.coarse_handles] - rest[self.first]
         self.deformer = Deformer(self.graph, self.coarse_handles, weights, preserve_area, newton=True,
                                  prevent_flips=prevent_flips)
-        self.binding = bind(self.graph, graph.points)
 
     def start(self, targets):
         coarse = self.deformer.solve(targets[self.first] + self.offset)
         return self.binding.apply(coarse.positions)
+
+
+def _coarse_copy(graph, interior=None):
+    """A coarse copy of ``graph``'s shape and the binding of ``graph``'s points to it.
+
+    With ``interior``, about that many interior points (:func:`~solver.outline.outline_graph`,
+    outline kept to ``COARSE_DETAIL``) and None if the outline will not make one; without, the
+    default spacing (:func:`~solver.graph.build_graph`). The copy depends on the graph alone,
+    while a Deformer is rebuilt for every change of handles or weights (the add-on does so on
+    every such edit), so the last few are kept, keyed by the graph's points and loops.
+    """
+    loops = graph.boundary_loops
+    digest = hashlib.blake2b(graph.points.tobytes(), digest_size=16)
+    digest.update(np.array([len(loop) for loop in loops], dtype=np.int64).tobytes())
+    digest.update(np.concatenate(loops).astype(np.int64).tobytes())
+    key = (digest.digest(), interior)
+    if key not in _COARSE_COPIES:
+        rings = [graph.points[loop] for loop in loops]
+        if interior is None:
+            coarse = build_graph(rings)
+        else:
+            try:
+                coarse = outline_graph(rings, interior, COARSE_DETAIL)
+            except ValueError:  # an outline the coarse copy cannot be built from
+                coarse = None
+        while len(_COARSE_COPIES) >= _COARSE_COPIES_KEPT:
+            del _COARSE_COPIES[next(iter(_COARSE_COPIES))]
+        _COARSE_COPIES[key] = None if coarse is None else (coarse, bind(coarse, graph.points))
+    return _COARSE_COPIES[key]
 
 
 def _multiplier(gradient, jacobian, direction):

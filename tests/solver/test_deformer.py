@@ -475,3 +475,22 @@ def test_fold_penalty_gradient_matches_finite_differences():
         step = 1e-6 * graph.size / np.abs(direction).max()
         slope = (penalty.evaluate(v + step * direction)[0] - penalty.evaluate(v - step * direction)[0]) / (2 * step)
         assert slope == pytest.approx(2.0 * half_gradient @ direction, rel=1e-4, abs=1e-9 * energy)
+
+
+def test_a_rebuilt_deformer_reuses_the_coarse_copy_of_an_equal_graph(horse_graph, horse_drag):
+    """Changing handles or weights rebuilds the Deformer, often on a new but equal Graph (the
+    add-on rebuilds its graph from stored data): the coarse copy is kept, the pose unchanged."""
+    from solver.deformer import COARSE_INTERIOR, _coarse_copy
+
+    handles, targets, _ = horse_drag
+    first = solver.Deformer(horse_graph, handles).solve(targets).positions
+    again = solver.Graph(horse_graph.points.copy(), horse_graph.edges, horse_graph.boundary_loops,
+                         horse_graph.triangles)
+    solver.Deformer(again, handles[:-3], weights={"edge": 2.0})
+    copy = _coarse_copy(horse_graph, COARSE_INTERIOR)
+    assert _coarse_copy(again, COARSE_INTERIOR) is copy
+    moved = again.points.copy()
+    moved[0] += 1.0
+    other = solver.Graph(moved, again.edges, again.boundary_loops, again.triangles)
+    assert _coarse_copy(other, COARSE_INTERIOR) is not copy
+    assert np.array_equal(solver.Deformer(again, handles).solve(targets).positions, first)
