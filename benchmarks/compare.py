@@ -245,6 +245,15 @@ def square_limits(axes, points_list):
         ax.set_ylim(low[1] - pad, high[1] + pad)
 
 
+def save_figure(fig, path, title=None):
+    """Title (small), lay out, write and close a figure."""
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def figure_side_by_side(rows, poses, path):
     cases = [("horse", "500", "bend"), ("horse", "500", "rotate"), ("glyph B", "500", "rotate")]
     fig, axes = plt.subplots(len(cases), 1 + len(SIDE_BY_SIDE), figsize=(15, 3.1 * len(cases)))
@@ -261,11 +270,8 @@ def figure_side_by_side(rows, poses, path):
             draw(ax, graph, positions, handles, targets, title)
             shown.append(positions)
         square_limits(row_axes, shown)
-    fig.suptitle("Same triangles, handles (green: targets) and drag for every method. "
-                 "Colour: triangle area ratio (blue shrunk, red grown, black flipped)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, "Same triangles, handles (green: targets) and drag for every method. "
+                "Colour: triangle area ratio (blue shrunk, red grown, black flipped)")
 
 
 def figure_local_area(path):
@@ -291,10 +297,7 @@ def figure_local_area(path):
         draw(ax, graph, positions, handles, targets,
              f"{label}\nflips {m['flips']}, area {m['area ratio']:.2f}, ARAP/area {m['ARAP / area']:.3f}")
     square_limits(axes, [graph.points, full, without])
-    fig.suptitle("Paper Figure 3: with and without the local area terms (horse, bend)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, "Paper Figure 3: with and without the local area terms (horse, bend)")
     return results, zero_note
 
 
@@ -327,10 +330,7 @@ def figure_convergence(path):
         reach = lambda curve: next((k for k, e in enumerate(curve) if e <= floor * 1.01), None)
         notes.append((f"{shape} {graph.n} {drag}", reach(ours_curve), reach(plain_rest), reach(plain_start),
                       ours_curve[-1], plain_rest[-1], floor))
-    fig.suptitle("Paper Figure 4: energy per iteration (log scale; x linear to 10, then log)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, "Paper Figure 4: energy per iteration (log scale; x linear to 10, then log)")
     return notes
 
 
@@ -351,10 +351,7 @@ def figure_area(path):
         draw(ax, graph, positions, handles, targets,
              f"{label}: area x{graph.area(positions) / rest_area:.3f}, width {np.ptp(positions[:, 0]):.2f}")
     square_limits(axes, [graph.points, with_area, without])
-    fig.suptitle("Paper Figure 5: top dragged up by 40% of the height, bottom pinned", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, "Paper Figure 5: top dragged up by 40% of the height, bottom pinned")
     return np.ptp(graph.points[:, 0]), widths
 
 
@@ -403,9 +400,7 @@ def figure_scaling(rows, path):
     ax.grid(True, which="both", lw=0.3)
     ax.legend(fontsize=8)
     ax.set_title("Horse, bend: time against graph size (log-log)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 # ---------------------------------------------------------------------------------------------
