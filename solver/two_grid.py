@@ -78,6 +78,7 @@ class TwoGrid:
         self._triangles = triangles
         self._slot = -np.ones(energy.n, dtype=np.int64)
         self._slot[free] = np.arange(len(free))
+        self._free_count = len(free)
         self._fold_solves = None       # K^-1 G, (2 f, k)
         self._fold_capacitance = None  # Cholesky factor of I + G^T K^-1 G, (k, k)
         self._newton = Hessian(energy, free, triangles, upper=False)  # the whole matrix, never factored
@@ -127,7 +128,7 @@ class TwoGrid:
         active = np.flatnonzero(coefficient)
         if len(active) == 0:
             return
-        k, f = len(active), self._slot.max() + 1
+        k, f = len(active), self._free_count
         slots = self._slot[self._triangles[active]]                   # (k, 3); -1: not free
         rows = np.concatenate([slots, np.where(slots >= 0, slots + f, -1)], axis=1)
         terms = np.broadcast_to(np.arange(k)[:, None], rows.shape)
