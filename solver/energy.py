@@ -142,9 +142,9 @@ class Energy:
 
         rest_rows = self.matrix @ rest
         self.curve_rest = rest_rows[self.curve_rows].copy()
-        # Each boundary vertex's three rows are consecutive: (m, 3) views group them.
-        self._curve_rest_x = np.ascontiguousarray(self.curve_rest[:, 0]).reshape(-1, 3)
-        self._curve_rest_y = np.ascontiguousarray(self.curve_rest[:, 1]).reshape(-1, 3)
+        # (3, m): row k of each, for every boundary vertex (see _curve_rows).
+        self._curve_rest_x = np.ascontiguousarray(self.curve_rest[:, 0]).reshape(3, -1)
+        self._curve_rest_y = np.ascontiguousarray(self.curve_rest[:, 1]).reshape(3, -1)
         rest_edge = rest_rows[self.length_rows]
         self.rest_length = np.linalg.norm(rest_edge, axis=1)
         self._rest_direction = np.ascontiguousarray(
@@ -153,26 +153,26 @@ class Energy:
 
     @staticmethod
     def _curve_rows(graph):
-        """Curve Laplacian (eq. 1) and the two curve edges at each boundary vertex (sec. 4.2)."""
-        rows, cols, vals, corners = [], [], [], []
-        row = 0
-        for loop in graph.boundary_loops:
-            m = len(loop)
-            here, before, after = loop, np.roll(loop, 1), np.roll(loop, -1)
-            r = row + 3 * np.arange(m)
-            # Laplacian row: v_i - (v_{i-1} + v_{i+1}) / 2
-            rows += [r, r, r]
-            cols += [here, before, after]
-            vals += [np.ones(m), -0.5 * np.ones(m), -0.5 * np.ones(m)]
-            # Edge rows: v_{i+1} - v_i and v_{i-1} - v_i
-            rows += [r + 1, r + 1, r + 2, r + 2]
-            cols += [after, here, before, here]
-            vals += [np.ones(m), -np.ones(m), np.ones(m), -np.ones(m)]
-            corners.append(np.stack([here, before, after], axis=1))
-            row += 3 * m
+        """Curve Laplacian (eq. 1) and the two curve edges at each boundary vertex (sec. 4.2).
+
+        Rows are laid out kind by kind over all ``m`` boundary vertices: Laplacian rows first,
+        then the edges to the next vertex, then the edges to the previous one, so a vertex's
+        three rows are ``g, m + g, 2 m + g`` and ``(3, m)`` views group them with contiguous
+        rows (sums over the three are then plain adds, not reductions over a short axis).
+        """
+        corners = np.concatenate([np.stack([loop, np.roll(loop, 1), np.roll(loop, -1)], axis=1)
+                                  for loop in graph.boundary_loops])
+        here, before, after = corners.T
+        m = len(corners)
+        r = np.arange(m)
+        ones = np.ones(m)
+        # Laplacian row: v_i - (v_{i-1} + v_{i+1}) / 2; edge rows: v_{i+1} - v_i and v_{i-1} - v_i
+        rows = [r, r, r, m + r, m + r, 2 * m + r, 2 * m + r]
+        cols = [here, before, after, after, here, before, here]
+        vals = [ones, -0.5 * ones, -0.5 * ones, ones, -ones, ones, -ones]
         matrix = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                            shape=(row, graph.n))
-        return matrix, np.concatenate(corners)
+                            shape=(3 * m, graph.n))
+        return matrix, corners
 
     @staticmethod
     def _mean_value_rows(graph):
@@ -226,10 +226,10 @@ class Energy:
         mvc = slice(curve.stop, lengths.start)
         residual[:, mvc] = rows[:, mvc]  # mean value rows have target zero
         # Each boundary vertex's three rest rows, turned by its fitted rotation (section 4.2).
-        cos, sin = fit.cos[:, None], fit.sin[:, None]
+        cos, sin = fit.cos, fit.sin
         rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
-        now = rows[:, curve].reshape(2, -1, 3)
-        turned = residual[:, curve].reshape(2, -1, 3)  # a view: written through
+        now = rows[:, curve].reshape(2, 3, -1)
+        turned = residual[:, curve].reshape(2, 3, -1)  # a view: written through
         np.subtract(now[0], cos * rest_x - sin * rest_y, out=turned[0])
         np.subtract(now[1], sin * rest_x + cos * rest_y, out=turned[1])
         # Nearest vector of rest length for each inner edge (eq. 4's e(v_i, v_j)).
@@ -272,9 +272,13 @@ class Energy:
         LocalFit
         """
         rest_x, rest_y = self._curve_rest_x, self._curve_rest_y
-        now_x, now_y = rows[:, self.curve_rows].reshape(2, -1, 3)
-        cos = (rest_x * now_x + rest_y * now_y).sum(axis=1)
-        sin = (rest_x * now_y - rest_y * now_x).sum(axis=1)
+        now_x, now_y = rows[:, self.curve_rows].reshape(2, 3, -1)
+        dot = rest_x * now_x
+        dot += rest_y * now_y
+        cross = rest_x * now_y
+        cross -= rest_y * now_x
+        cos = dot[0] + dot[1] + dot[2]
+        sin = cross[0] + cross[1] + cross[2]
         norm = np.sqrt(cos * cos + sin * sin)  # np.hypot is 3x slower here
         if norm.min(initial=1.0) > 0.0:
             cos, sin = cos / norm, sin / norm
