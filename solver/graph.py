@@ -24,6 +24,8 @@ __all__ = ["Graph", "build_graph", "default_spacing"]
 # Target number of lattice points for the default spacing: the paper's shapes have 160-260
 # interior points (Table 1); we aim a little higher so thin limbs still get a row of points.
 DEFAULT_LATTICE_POINTS = 300
+# Ring vertices closer than this fraction of the spacing are merged (see _merge_close).
+NEAR_DUPLICATE = 0.01
 
 
 class Graph:
@@ -157,6 +159,24 @@ def default_spacing(geometry):
     return float(np.sqrt(geometry.area / DEFAULT_LATTICE_POINTS))
 
 
+def _merge_close(ring, tolerance):
+    """Drop ring vertices closer than ``tolerance`` to the last one kept (keeping at least 3).
+
+    Boolean operations and curve corners leave vertices a hair apart; each makes triangles with
+    almost no area, whose orientation means nothing but whose fold penalty is huge.
+    """
+    previous = np.linalg.norm(ring - np.roll(ring, 1, axis=0), axis=1)
+    if previous.min(initial=np.inf) >= tolerance:
+        return ring
+    keep = [0]
+    for index in range(1, len(ring)):  # rare: only rings with close vertices get here
+        if np.linalg.norm(ring[index] - ring[keep[-1]]) >= tolerance:
+            keep.append(index)
+    while len(keep) > 3 and np.linalg.norm(ring[keep[-1]] - ring[keep[0]]) < tolerance:
+        keep.pop()
+    return ring[keep] if len(keep) >= 3 else ring
+
+
 def _subdivide(ring, spacing):
     """Insert points on segments longer than ``spacing`` so the boundary is sampled evenly."""
     following = np.roll(ring, -1, axis=0)
@@ -250,7 +270,8 @@ def build_graph(rings, spacing=None):
     ----------
     rings : sequence of (k, 2) array_like
         Closed rings in any orientation and order: outer boundaries, holes, several islands.
-        Repeated points and collinear runs are fine.
+        Repeated points and collinear runs are fine; vertices closer than ``NEAR_DUPLICATE``
+        times the spacing are merged.
     spacing : float, optional
         Distance between interior lattice points; also the longest boundary segment (longer
         ones are subdivided). By default about 300 lattice points fill the shape.
@@ -271,7 +292,8 @@ def build_graph(rings, spacing=None):
     if not np.isfinite(spacing) or spacing <= 0:
         raise ValueError(f"spacing must be a positive number, got {spacing}")
 
-    loops = [_subdivide(ring, spacing) for island in geometry_rings(geometry) for ring in island]
+    loops = [_subdivide(_merge_close(ring, NEAR_DUPLICATE * spacing), spacing)
+             for island in geometry_rings(geometry) for ring in island]
     boundary = np.concatenate(loops)
     interior = _interior_points(geometry, boundary, spacing)
     points, loop_indices, triangles = conforming_triangulation(loops, interior, geometry)

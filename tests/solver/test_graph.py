@@ -5,7 +5,7 @@ import pytest
 
 import solver
 from solver.energy import mean_value_weights
-from conftest import disk, glyph_rings
+from conftest import disk, figure_rings, glyph_rings
 
 
 def triangle_areas(graph):
@@ -57,3 +57,23 @@ def test_graph_validation():
         solver.Graph(points[:3], [[0, 7]], [[0, 1, 2]])
     with pytest.raises(ValueError, match="boundary loop"):
         solver.Graph(points[:3], [], [])
+
+
+def test_vertices_a_hair_apart_are_merged_and_dense_rings_keep_their_outline():
+    """Boolean operations leave ring vertices a hair apart; each would make a triangle of almost
+    no area. They are merged; a ring sampled far more densely than the spacing keeps its shape."""
+    rings = figure_rings()
+    gaps = np.concatenate([np.linalg.norm(r - np.roll(r, 1, axis=0), axis=1) for r in rings])
+    assert gaps.min() < 1e-4  # the input has them
+    graph = solver.build_graph(rings)
+    spacing = solver.graph.default_spacing(solver.shapes.shape_geometry(rings))
+    for loop in graph.boundary_loops:
+        edges = np.linalg.norm(graph.points[loop] - graph.points[np.roll(loop, 1)], axis=1)
+        assert edges.min() >= solver.graph.NEAR_DUPLICATE * spacing
+    areas = triangle_areas(graph)
+    assert areas.min() > 1e-3 * np.median(areas)
+    assert graph.area() == pytest.approx(solver.shapes.shape_geometry(rings).area, rel=1e-4)
+
+    dense = disk(count=20000)  # steps of 3e-4, far below the merge distance
+    graph = solver.build_graph([dense], spacing=0.1)
+    assert graph.area() == pytest.approx(solver.shapes.shape_geometry([dense]).area, rel=1e-4)
