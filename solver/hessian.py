@@ -129,7 +129,8 @@ class Hessian:
 
         # Curve groups: w_k = R J t_k / sqrt(T) with t_k the rest rows and J the quarter turn, and
         # u = A^T w on the group's three points; R is the only part that changes with the pose.
-        rest = energy.curve_rest.reshape(3, -1, 2).transpose(1, 0, 2)  # (m, 3: laplacian, to after, to before, 2)
+        # (m, 3, 2): each vertex's laplacian, to-after and to-before rest rows
+        rest = energy.curve_rest.reshape(3, -1, 2).transpose(1, 0, 2)
         turned = np.stack([-rest[..., 1], rest[..., 0]], axis=-1)
         self._group_total = np.einsum("gkc,gkc->g", rest, rest)
         scale = energy.curve_scale / np.sqrt(np.where(self._group_total > 0, self._group_total, 1.0))
