@@ -48,6 +48,24 @@ def test_default_solve_is_converged_within_15_iterations(horse_graph, horse_drag
     assert flipped(horse_graph, pose.positions) == 0
 
 
+def test_a_free_limb_swinging_about_a_handle_converges_within_the_render_budget(horse_graph):
+    """Two handle regions pulling against each other, the head free to swing about the dragged
+    one: a flat valley, which the solve crawls along once its first refreshes are spent. After
+    30 iterations it was 7.8e-2 of the size off its minimum; later refreshes bring it within
+    1e-3."""
+    points, size = horse_graph.points, horse_graph.size
+    pinned = region(points, (276.5, 225.1), 0.05 * size)
+    dragged = np.setdiff1d(region(points, (311.4, 231.1), 0.05 * size), pinned)
+    c, s = np.cos(-0.111), np.sin(-0.111)
+    turned = (points[dragged] - (311.4, 231.1)) @ np.array([[c, -s], [s, c]]).T + (311.4 - 12.0, 231.1 + 73.1)
+    handles = np.concatenate([pinned, dragged])
+    targets = np.concatenate([points[pinned], turned])
+    deformer = solver.Deformer(horse_graph, handles)
+    minimum = deformer.solve(targets, max_iterations=3000, tolerance=1e-9)
+    pose = deformer.solve(targets, max_iterations=30)
+    assert np.abs(pose.positions - minimum.positions).max() <= 1e-3 * size
+
+
 def test_moving_handles_never_refactorises_the_shapes_matrix(horse_graph, horse_drag):
     """The default keeps the paper's factor of the shape's matrix from one handle move to the
     next, values and all; what follows the pose is a coarse matrix under half the size."""
@@ -62,7 +80,7 @@ def test_moving_handles_never_refactorises_the_shapes_matrix(horse_graph, horse_
         moved = rest + (targets - rest) * t
         pose = deformer.solve(moved)
         assert pose.converged and np.array_equal(pose.positions[handles], moved)
-        assert 1 <= pose.factorizations <= solver.deformer.NEWTON_STEPS
+        assert 1 <= pose.factorizations <= solver.deformer.LATE_REFRESHES
         assert two_grid._smoother._factor is factor
         assert np.array_equal(factor.solve(probe), before)
     assert 2 * two_grid._coarse_upper.shape[0] <= 2 * len(deformer.free)  # both stacked [x; y]
@@ -284,7 +302,7 @@ def test_large_graph_path_converges_from_a_coarse_start(horse_graph, horse_drag,
         assert deformer._hessian._smoother._factor is fine_factor
         assert np.array_equal(pose.positions[handles], rest + (targets - rest) * t)
         assert np.all(np.diff(pose.energies) <= 0.0)
-    assert 1 <= pose.factorizations <= solver.deformer.NEWTON_STEPS
+    assert 1 <= pose.factorizations <= solver.deformer.LATE_REFRESHES
     assert np.abs(pose.positions - newton.positions).max() <= 1e-3 * horse_graph.size
 
 
