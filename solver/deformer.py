@@ -93,6 +93,11 @@ _COARSE_COPIES = {}
 # (refreshes clear them); with it, 8 left the character's standard drag at the 30-iteration cap
 # and 16 converges in 17.
 HISTORY = 16
+# The area constraint is met to this fraction of the rest area (rounding in the shoelace sum of a
+# 12,000-point boundary alone is 1e-12); reaching it from the start takes at most PROJECTION_STEPS
+# steps (one, unless the start is far from the rest area).
+AREA_TOLERANCE = 1e-10
+PROJECTION_STEPS = 50
 # Armijo sufficient-decrease constant and the most halvings the line search tries.
 ARMIJO = 1e-4
 MAX_HALVINGS = 30
@@ -149,7 +154,8 @@ class _AreaConstraint:
         self._free_free = rows_free[:, stacked_free].tocsr()
         self._free_fixed = rows_free[:, stacked_fixed].tocsr()
         self._fixed_fixed = shoelace[stacked_fixed][:, stacked_fixed].tocsr()
-        rest = np.concatenate([graph.points[:, 0], graph.points[:, 1]])
+        centred = graph.points - 0.5 * (graph.points.min(axis=0) + graph.points.max(axis=0))
+        rest = np.concatenate([centred[:, 0], centred[:, 1]])
         self.rest = 0.5 * float(rest @ (shoelace @ rest))
         self._linear = np.zeros(len(stacked_free))
         self._constant = 0.0
@@ -186,6 +192,29 @@ class _AreaConstraint:
             mu = min(candidates, key=abs)
         v += mu * direction
         return True
+
+    def project(self, v, directions):
+        """Move ``v`` (in place) to the rest area; False if ``PROJECTION_STEPS`` do not get there.
+
+        ``directions(jacobian)`` gives the direction to move along (the solver's ``H^-1 J``). When
+        the area cannot reach the rest area along it (a start far from it, after an extreme
+        drag: the area's curvature along the line turns it back first), the area's own gradient
+        is tried, and failing that the step goes along the gradient to where the area is nearest
+        the rest area, and a new direction is taken from there.
+        """
+        for _ in range(PROJECTION_STEPS):
+            if abs(self.area(v) - self.rest) <= AREA_TOLERANCE * abs(self.rest):
+                return True
+            jacobian = self.jacobian(v)
+            if self.restore(v, directions(jacobian)) or self.restore(v, jacobian):
+                continue
+            # Along the area's own gradient, go to where the area is nearest the rest area.
+            curvature = float(jacobian @ (self._free_free @ jacobian))
+            slope = float(jacobian @ jacobian)
+            if curvature == 0.0 or slope == 0.0:
+                return False
+            v -= (slope / curvature) * jacobian
+        return abs(self.area(v) - self.rest) <= AREA_TOLERANCE * abs(self.rest)
 
 
 class Deformer:
@@ -365,7 +394,8 @@ class Deformer:
         Raises
         ------
         ValueError
-            Targets of the wrong shape or not finite.
+            Targets of the wrong shape or not finite; with ``preserve_area``, no pose with the rest
+            area found near the start.
         """
         targets = np.asarray(targets, dtype=np.float64)
         if targets.shape != (len(self.handles), 2):
@@ -380,18 +410,23 @@ class Deformer:
         positions = self._start(targets, initial)
         if len(self.free) == 0:
             return Solution(positions, 0, [], True)
-        fixed = positions[self._fixed]
+        # The energy ignores translation, but rounding in the area (a sum of products of
+        # coordinates) does not: a shape dragged 100 times its size away kept its area to only
+        # 3e-6. So iterate on coordinates centred on the start pose.
+        origin = 0.5 * (positions.min(axis=0) + positions.max(axis=0))
+        local = positions - origin
+        fixed = local[self._fixed]
         fixed_rows = (self._fixed_columns @ fixed).T.ravel()
         if self._area is not None:
             self._area.hold(fixed.T.ravel())
         if self._folds is not None:
             self._folds.hold(fixed)
         try:
-            solution = self._iterate(positions[self.free].T.ravel(), fixed_rows, max_iterations, tolerance)
+            solution = self._iterate(local[self.free].T.ravel(), fixed_rows, max_iterations, tolerance)
         except RuntimeError as error:  # qdldl: a matrix that is not positive definite
             raise ValueError(f"the deformation system is singular ({error}): the weights or handles "
                              "leave part of the shape free to move without changing the energy") from None
-        positions[self.free] = solution.positions.reshape(2, -1).T
+        positions[self.free] = solution.positions.reshape(2, -1).T + origin
         solution.positions = positions
         return solution
 
@@ -427,9 +462,11 @@ class Deformer:
         if area is not None:
             rows = (fixed_rows + self._free_block @ v).reshape(2, -1)
             self._factorize(v, (rows, None))
-            direction = hessian.solve(area.jacobian(v))
-            area.restore(v, direction)
+            if not area.project(v, hessian.solve):
+                raise ValueError(f"preserve_area: found no pose with the rest area near the start for these "
+                                 f"targets (the nearest came to {area.area(v) / area.rest:.3g} times it)")
             jacobian = area.jacobian(v)  # kept with direction: both change only with v
+            direction = hessian.solve(jacobian)
         energy, gradient, pose = self._evaluate(v, fixed_rows)  # gradient: half the true one
         if area is None:
             self._factorize(v, pose)

@@ -76,7 +76,10 @@ def filtered_delaunay(points, geometry, min_area=0.0):
     (t, 3) int64 ndarray
         Counter-clockwise triangles.
     """
-    simplices = Delaunay(points).simplices
+    # Qhull works in absolute coordinates: a shape far from the origin (a millionth of its
+    # offset in size) loses the digits it needs and leaves boundary segments out, which the
+    # conforming loop then splits round after round. Centred, it keeps them.
+    simplices = Delaunay(points - 0.5 * (points.min(axis=0) + points.max(axis=0))).simplices
     centroid = points[simplices].mean(axis=1)
     cross = triangle_cross(points, simplices)
     inside = shapely.contains_xy(geometry, centroid[:, 0], centroid[:, 1])

@@ -124,6 +124,43 @@ def test_global_area_is_exact(rings_name, horse_graph, horse_drag):
     assert abs(graph.area(free.positions) / graph.area() - 1.0) > 1e-6  # the constraint did something
 
 
+def test_global_area_is_exact_after_a_drag_a_hundred_times_the_size():
+    """A thin bar with part of it dragged 100 times its size away: the start pose has 100 times
+    the area, beyond reach along the solver's first direction. The solve used to return that
+    start untouched after 0 iterations; now the area is met."""
+    graph = solver.build_graph([np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0 / 30.0], [0.0, 1.0 / 30.0]])])
+    pinned = region(graph.points, (0.5, 0.017), 0.05)
+    dragged = np.setdiff1d(region(graph.points, (0.6, 0.017), 0.065), pinned)
+    handles = np.concatenate([pinned, dragged])
+    targets = np.concatenate([graph.points[pinned], graph.points[dragged] + [94.5, 40.75]])
+    pose = solver.Deformer(graph, handles, preserve_area=True).solve(targets)
+    assert pose.iterations > 0 and np.all(np.isfinite(pose.positions))
+    assert abs(graph.area(pose.positions) / graph.area() - 1.0) <= 1e-9
+    assert np.array_equal(pose.positions[handles], targets)
+
+
+def test_a_shape_far_from_the_origin_builds_and_deforms_as_at_the_origin():
+    """A shape a millionth of its offset in size: triangulating in absolute coordinates lost the
+    digits the boundary needed, and the graph build split segments round after round for
+    minutes."""
+    rings = [disk(1.0, 48), disk(0.4, 24)]
+    offset = np.array([1e6, -7e5])
+    near = solver.build_graph(rings)
+    far = solver.build_graph([ring + offset for ring in rings])
+    assert abs(far.n - near.n) <= 0.02 * near.n
+    assert far.area() == pytest.approx(near.area(), rel=1e-6)
+    corners = far.points[far.triangles] - offset
+    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    assert np.all(cross > 0) and 0.5 * cross.sum() == pytest.approx(far.area(), rel=1e-6)  # tiled
+    left = np.flatnonzero(far.points[:, 0] < offset[0] - 0.9)
+    right = np.flatnonzero(far.points[:, 0] > offset[0] + 0.9)
+    handles = np.concatenate([left, right])
+    targets = far.points[handles] + np.where(np.isin(handles, right)[:, None], [0.5, 0.2], 0.0)
+    pose = solver.Deformer(far, handles, preserve_area=True).solve(targets)
+    assert pose.converged and np.array_equal(pose.positions[handles], targets)
+    assert abs(far.area(pose.positions) / far.area() - 1.0) <= 1e-9
+
+
 def test_pose_depends_on_targets_only(horse_graph, horse_drag):
     """A render farm renders frames out of order: frame 30 must not depend on frames 1-29."""
     handles, targets, head = horse_drag
