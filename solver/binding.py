@@ -26,6 +26,8 @@ __all__ = ["Binding", "bind"]
 CANDIDATES = 12
 # Barycentric coordinates above -INSIDE count as inside a triangle.
 INSIDE = 1e-12
+# Triangles whose doubled area is below FLAT times their longest side squared are not bound to.
+FLAT = 1e-9
 # Outside the shape, boundary edges up to this fraction of the point's distance farther than
 # the nearest one blend in...
 BLEND_RELATIVE = 0.5
@@ -221,7 +223,19 @@ def bind(graph, points):
     triangles = np.asarray(graph.triangles, dtype=np.int64)
     if len(triangles) == 0:
         raise ValueError("the graph has no triangles to bind to")
+    # Barycentric coordinates from coordinates centred on the graph keep their digits when the
+    # shape lies far from the origin.
     graph_points = np.asarray(graph.points, dtype=np.float64)
+    centre = 0.5 * (graph_points.min(axis=0) + graph_points.max(axis=0))
+    graph_points, points = graph_points - centre, points - centre
+    # Flat triangles carry no affine map worth following (their barycentric coordinates blow
+    # up); their neighbours cover the same ground.
+    corners = graph_points[triangles]
+    sides = corners - np.roll(corners, 1, axis=1)
+    cross = np.abs(np.cross(sides[:, 0], sides[:, 1]))
+    fair = cross > FLAT * np.einsum("tkc,tkc->tk", sides, sides).max(axis=1)
+    if fair.any():
+        triangles = triangles[fair]
     chosen, weights = _containing(points, graph_points[triangles])
     inside = np.flatnonzero(chosen >= 0)
     rows = [np.repeat(inside, 3)]

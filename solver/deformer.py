@@ -253,8 +253,8 @@ class Deformer:
     Raises
     ------
     ValueError
-        Handles out of range or repeated, bad weights, or ``preserve_area`` with every boundary
-        point a handle (the area would be fixed by the handles alone).
+        Handles out of range or repeated, bad weights, or ``preserve_area`` with no boundary point
+        free to move (all are handles or on islands without handles): the area would be fixed.
     """
 
     def __init__(self, graph, handles, weights=None, preserve_area=False, newton=None,
@@ -325,7 +325,8 @@ class Deformer:
             self._similarity_factor = qdldl.Solver(triu(normal, format="csc"), upper=True)
         self._area = _AreaConstraint(graph, self.free, self._fixed) if self.preserve_area else None
         if self._area is not None and not np.isin(graph.boundary, self.free).any():
-            raise ValueError("preserve_area needs at least one boundary point that is not a handle")
+            raise ValueError("preserve_area needs a boundary point that can move: every boundary point is a "
+                             "handle or lies on an island without handles, which stays at rest")
 
     def _newton_or_two_grid(self, newton):
         """The two-grid on a coarse copy of about ``COARSE_INTERIOR`` interior points, or the
@@ -464,7 +465,7 @@ class Deformer:
             self._factorize(v, (rows, None))
             if not area.project(v, hessian.solve):
                 raise ValueError(f"preserve_area: found no pose with the rest area near the start for these "
-                                 f"targets (the nearest came to {area.area(v) / area.rest:.3g} times it)")
+                                 f"targets (the nearest was {area.area(v) / area.rest - 1.0:.2g} off it)")
             jacobian = area.jacobian(v)  # kept with direction: both change only with v
             direction = hessian.solve(jacobian)
         energy, gradient, pose = self._evaluate(v, fixed_rows)  # gradient: half the true one

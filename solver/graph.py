@@ -297,6 +297,13 @@ def build_graph(rings, spacing=None):
     spacing = float(spacing)
     if not np.isfinite(spacing) or spacing <= 0:
         raise ValueError(f"spacing must be a positive number, got {spacing}")
+    # Built about the shape's centre and moved back at the end: points subdivided along a slanted
+    # edge of a shape a millionth of its offset in size land off the edge by the offset's
+    # rounding, and the nearly flat triangles they make at the boundary wreck binding and the
+    # fold penalty.
+    x0, y0, x1, y1 = geometry.bounds
+    origin = np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1)])
+    geometry = shapely.transform(geometry, lambda xy: xy - origin)
 
     loops = [_subdivide(_merge_close(ring, NEAR_DUPLICATE * spacing), spacing)
              for island in geometry_rings(geometry) for ring in island]
@@ -310,4 +317,4 @@ def build_graph(rings, spacing=None):
         loops = [points[index] for index in loop_indices]
         points, loop_indices, triangles = conforming_triangulation(
             loops, points[first_interior:], geometry)
-    return Graph(points, edges_of_triangles(triangles), loop_indices, triangles)
+    return Graph(points + origin, edges_of_triangles(triangles), loop_indices, triangles)
