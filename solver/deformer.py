@@ -54,15 +54,18 @@ DEFAULT_TOLERANCE = 1e-4
 # times the shape's size; then L-BFGS reuses the last one.
 NEWTON_STEPS = 4
 NEWTON_UNTIL = 1e-2
-# A solve still running at LATE_REFRESH_FROM iterations is crawling along a flat valley (a free
-# limb swinging about a handle, two handles pulling against each other) where the last refresh
-# no longer describes the pose: it refreshes every LATE_REFRESH_EVERY iterations, up to
-# LATE_REFRESHES in all. On 24 random drags of 2-3 handle regions over the benchmark shapes, the
-# worst pose after 30 iterations went from 7.8e-2 of the size off its minimum to 2.8e-2
-# (1.2e-1 to 1.9e-2 with the fold penalty); drags that converge sooner are unchanged.
+# A solve still running at LATE_REFRESH_FROM iterations with steps above LATE_UNTIL times the
+# size is crawling along a flat valley (a free limb swinging about a handle, two handles pulling
+# against each other) where the last refresh no longer describes the pose: it refreshes every
+# LATE_REFRESH_EVERY iterations, up to LATE_REFRESHES in all. On 24 random drags of 2-3 handle
+# regions over the benchmark shapes, the worst pose after 30 iterations went from 7.8e-2 of the
+# size off its minimum to 2.8e-2 (1.2e-1 to 1.5e-2 with the fold penalty). Without the step
+# gate, a solve about to converge at its tenth iteration (the character's standard drag) paid a
+# refresh and an iteration more.
 LATE_REFRESH_FROM = 10
 LATE_REFRESH_EVERY = 3
 LATE_REFRESHES = 12
+LATE_UNTIL = 1e-3
 # Up to this many points the solve starts from the as-similar-as-possible pose; above, from the
 # pose of a coarse copy of the shape (_CoarseStart), which is also the two-grid's coarse level.
 COARSE_START_POINTS = 3000
@@ -516,7 +519,8 @@ class Deformer:
             early = newton_steps < newton_limit and largest > NEWTON_UNTIL * size
             late = (newton_limit > 0 and newton_steps < LATE_REFRESHES
                     and solution.iterations >= LATE_REFRESH_FROM
-                    and solution.iterations - last_refresh >= LATE_REFRESH_EVERY)
+                    and solution.iterations - last_refresh >= LATE_REFRESH_EVERY
+                    and largest > LATE_UNTIL * size)
             refactor = early or late
             # The first step after a late refresh is the bare preconditioner's, short in a flat
             # valley however far the minimum: it says nothing of convergence.

@@ -66,6 +66,21 @@ def test_a_free_limb_swinging_about_a_handle_converges_within_the_render_budget(
     assert np.abs(pose.positions - minimum.positions).max() <= 1e-3 * size
 
 
+def test_a_solve_converging_at_its_tenth_iteration_pays_no_late_refresh():
+    """Late refreshes are for solves still taking large steps; the figure's standard drag (its
+    highest point dragged, its lowest pinned) converges at its tenth iteration and took an
+    iteration and a refresh more when a late refresh fired there."""
+    graph = solver.build_graph(figure_rings())
+    points, size = graph.points, graph.size
+    pinned = region(points, points[np.argmin(points[:, 1])], 0.06 * size)
+    dragged = region(points, points[np.argmax(points[:, 1])], 0.06 * size)
+    handles = np.concatenate([pinned, dragged])
+    targets = points[handles] + np.where(np.isin(handles, dragged)[:, None], [-0.25 * size, 0.2 * size], 0.0)
+    pose = solver.Deformer(graph, handles).solve(targets)
+    assert pose.converged and pose.iterations <= 10
+    assert pose.factorizations <= solver.deformer.NEWTON_STEPS
+
+
 def test_moving_handles_never_refactorises_the_shapes_matrix(horse_graph, horse_drag):
     """The default keeps the paper's factor of the shape's matrix from one handle move to the
     next, values and all; what follows the pose is a coarse matrix under half the size."""
