@@ -100,6 +100,7 @@ HISTORY = 16
 # 12,000-point boundary alone is 1e-12); reaching it from the start takes at most PROJECTION_STEPS
 # steps (one, unless the start is far from the rest area).
 AREA_TOLERANCE = 1e-10
+ROUNDING = 1e-13
 PROJECTION_STEPS = 50
 # Armijo sufficient-decrease constant and the most halvings the line search tries.
 ARMIJO = 1e-4
@@ -157,6 +158,8 @@ class _AreaConstraint:
         self._free_free = rows_free[:, stacked_free].tocsr()
         self._free_fixed = rows_free[:, stacked_fixed].tocsr()
         self._fixed_fixed = shoelace[stacked_fixed][:, stacked_fixed].tocsr()
+        self._free_free_magnitude = abs(self._free_free)
+        self._fixed_magnitude = 0.0
         centred = graph.points - 0.5 * (graph.points.min(axis=0) + graph.points.max(axis=0))
         rest = np.concatenate([centred[:, 0], centred[:, 1]])
         self.rest = 0.5 * float(rest @ (shoelace @ rest))
@@ -167,6 +170,19 @@ class _AreaConstraint:
         """Take the fixed points' stacked coordinates ``(2 c,)`` for the solve that follows."""
         self._linear = self._free_fixed @ fixed_coordinates
         self._constant = 0.5 * float(fixed_coordinates @ (self._fixed_fixed @ fixed_coordinates))
+        magnitude = np.abs(fixed_coordinates)
+        self._fixed_magnitude = (abs(self._free_fixed) @ magnitude,
+                                 0.5 * float(magnitude @ (abs(self._fixed_fixed) @ magnitude)))
+
+    def met(self, v):
+        """Whether the area at ``v`` is the rest area: to ``AREA_TOLERANCE``, or to the rounding of
+        its own sum at a pose so large that this is all float64 can tell (a start after an
+        extreme drag of a needle-spiked shape reached 5,000 times the shape's size)."""
+        linear, constant = self._fixed_magnitude
+        magnitude = np.abs(v)
+        terms = 0.5 * float(magnitude @ (self._free_free_magnitude @ magnitude))
+        terms += float(linear @ magnitude) + constant
+        return abs(self.area(v) - self.rest) <= max(AREA_TOLERANCE * abs(self.rest), ROUNDING * terms)
 
     def area(self, v):
         return 0.5 * float(v @ (self._free_free @ v)) + float(self._linear @ v) + self._constant
@@ -206,7 +222,7 @@ class _AreaConstraint:
         the rest area, and a new direction is taken from there.
         """
         for _ in range(PROJECTION_STEPS):
-            if abs(self.area(v) - self.rest) <= AREA_TOLERANCE * abs(self.rest):
+            if self.met(v):
                 return True
             jacobian = self.jacobian(v)
             if self.restore(v, directions(jacobian)) or self.restore(v, jacobian):
@@ -217,7 +233,7 @@ class _AreaConstraint:
             if curvature == 0.0 or slope == 0.0:
                 return False
             v -= (slope / curvature) * jacobian
-        return abs(self.area(v) - self.rest) <= AREA_TOLERANCE * abs(self.rest)
+        return self.met(v)
 
 
 class Deformer:
