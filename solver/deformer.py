@@ -340,7 +340,11 @@ class Deformer:
             # their rest positions keeps them there and changes nothing else measurably.
             tiny = 1e-12 * _diagonal_scale(normal)
             normal = normal + tiny * identity(normal.shape[0], format="csc")
-            self._similarity_rest_pull = tiny * graph.points[self.free].T.ravel()
+            # Solved about the rest shape's centre: the pull is what settles turns and scales the
+            # handles leave open (a single handle point), and far from the origin its rounding
+            # turned a shape 1e6 times smaller than its offset by more than its size.
+            self._similarity_origin = 0.5 * (graph.points.min(axis=0) + graph.points.max(axis=0))
+            self._similarity_rest_pull = tiny * (graph.points[self.free] - self._similarity_origin).T.ravel()
             self._similarity_factor = qdldl.Solver(triu(normal, format="csc"), upper=True)
         self._area = _AreaConstraint(graph, self.free, self._fixed) if self.preserve_area else None
         if self._area is not None and not np.isin(graph.boundary, self.free).any():
@@ -380,14 +384,15 @@ class Deformer:
 
     def _similar_start(self, positions):
         """The as-similar-as-possible pose for the current fixed points (one linear solve)."""
-        stacked = np.concatenate([positions[:, 0], positions[:, 1]])
+        origin = self._similarity_origin
+        stacked = np.concatenate([positions[:, 0] - origin[0], positions[:, 1] - origin[1]])
         rhs = self._similarity_rest_pull - self._similarity_free_transpose @ (
             self._similarity_fixed @ stacked[self._stacked_fixed])
         free = self._similarity_factor.solve(rhs)
         k = len(self.free)
         positions = positions.copy()
-        positions[self.free, 0] = free[:k]
-        positions[self.free, 1] = free[k:]
+        positions[self.free, 0] = free[:k] + origin[0]
+        positions[self.free, 1] = free[k:] + origin[1]
         return positions
 
     def solve(self, targets, max_iterations=None, tolerance=None, initial=None):
