@@ -88,11 +88,11 @@ def _segment_distance(points, a, b):
 def _search(tree, points, settle, most=None):
     """Hand each point's nearest tree items to ``settle`` until it settles the point.
 
-    ``settle(rows, distances, nearest)`` gets point row numbers ``(q,)`` with the distances
-    ``(q, k)`` (sorted) and indices ``(q, k)`` of their ``k`` nearest items, records what it
-    can decide and returns a ``(q,)`` mask of the rows it settled. ``k`` starts at
-    ``CANDIDATES`` and grows fourfold for the rest, up to ``most`` (default: every item); the
-    last round must settle every row it gets.
+    ``settle(rows, distances, nearest, last)`` gets point row numbers ``(q,)`` with the
+    distances ``(q, k)`` (sorted) and indices ``(q, k)`` of their ``k`` nearest items, records
+    what it can decide and returns a ``(q,)`` mask of the rows it settled. ``k`` starts at
+    ``CANDIDATES`` and grows fourfold for the rest, up to ``most`` (default: every item); in
+    that round ``last`` is True and every row must be settled.
     """
     most = tree.n if most is None else min(most, tree.n)
     rows = np.arange(len(points))
@@ -181,8 +181,7 @@ def _exterior_weights(points, graph_points, triangles, size):
         fade /= fade.sum(axis=1, keepdims=True)
         rows, triangle = rows[done], owner[nearest[done]]                     # (q,), (q, k)
         corners = triangles[triangle]                                         # (q, k, 3)
-        bary = _barycentric(points[rows, None, None], *(graph_points[corners[..., j]][:, :, None]
-                                                        for j in range(3)))[:, :, 0]
+        bary = _barycentric(points[rows, None], *(graph_points[corners[..., j]] for j in range(3)))
         used = fade > 0
         entries.append((np.broadcast_to(rows[:, None, None], corners.shape)[used].ravel(),
                         corners[used].ravel(), (fade[..., None] * bary)[used].ravel()))

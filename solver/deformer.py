@@ -159,7 +159,7 @@ class _AreaConstraint:
         self._free_fixed = rows_free[:, stacked_fixed].tocsr()
         self._fixed_fixed = shoelace[stacked_fixed][:, stacked_fixed].tocsr()
         self._free_free_magnitude = abs(self._free_free)
-        self._fixed_magnitude = 0.0
+        self._fixed_magnitude = (np.zeros(len(stacked_free)), 0.0)
         centred = graph.points - 0.5 * (graph.points.min(axis=0) + graph.points.max(axis=0))
         rest = np.concatenate([centred[:, 0], centred[:, 1]])
         self.rest = 0.5 * float(rest @ (shoelace @ rest))
