@@ -174,15 +174,19 @@ class _AreaConstraint:
         self._fixed_magnitude = (abs(self._free_fixed) @ magnitude,
                                  0.5 * float(magnitude @ (abs(self._fixed_fixed) @ magnitude)))
 
-    def met(self, v):
-        """Whether the area at ``v`` is the rest area: to ``AREA_TOLERANCE``, or to the rounding of
-        its own sum at a pose so large that this is all float64 can tell (a start after an
-        extreme drag of a needle-spiked shape reached 5,000 times the shape's size)."""
-        linear, constant = self._fixed_magnitude
-        magnitude = np.abs(v)
-        terms = 0.5 * float(magnitude @ (self._free_free_magnitude @ magnitude))
-        terms += float(linear @ magnitude) + constant
-        return abs(self.area(v) - self.rest) <= max(AREA_TOLERANCE * abs(self.rest), ROUNDING * terms)
+    def met(self, v, rounding=False):
+        """Whether the area at ``v`` is the rest area to ``AREA_TOLERANCE``; with ``rounding``,
+        or to the rounding of its own sum, when that is larger (at a pose so large that this is
+        all float64 can tell: a start after an extreme drag of a needle-spiked shape reached
+        5,000 times the shape's size)."""
+        bound = AREA_TOLERANCE * abs(self.rest)
+        if rounding:
+            linear, constant = self._fixed_magnitude
+            magnitude = np.abs(v)
+            terms = 0.5 * float(magnitude @ (self._free_free_magnitude @ magnitude))
+            terms += float(linear @ magnitude) + constant
+            bound = max(bound, ROUNDING * terms)
+        return abs(self.area(v) - self.rest) <= bound
 
     def area(self, v):
         return 0.5 * float(v @ (self._free_free @ v)) + float(self._linear @ v) + self._constant
@@ -213,7 +217,8 @@ class _AreaConstraint:
         return True
 
     def project(self, v, directions):
-        """Move ``v`` (in place) to the rest area; False if ``PROJECTION_STEPS`` do not get there.
+        """Move ``v`` (in place) to the rest area; False if ``PROJECTION_STEPS`` do not get there
+        (or to the rounding of the area's sum, see :meth:`met`).
 
         ``directions(jacobian)`` gives the direction to move along (the solver's ``H^-1 J``). When
         the area cannot reach the rest area along it (a start far from it, after an extreme
@@ -233,7 +238,7 @@ class _AreaConstraint:
             if curvature == 0.0 or slope == 0.0:
                 return False
             v -= (slope / curvature) * jacobian
-        return self.met(v)
+        return self.met(v, rounding=True)
 
 
 class Deformer:

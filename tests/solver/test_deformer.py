@@ -161,6 +161,17 @@ SLANTED = np.array([[0.3540135422954336, -1.0895416509592906], [-0.7277013721177
                     [1.015685724443756, 0.0]])
 
 
+def test_global_area_is_exact_with_an_island_dragged_a_hundred_times_the_size_away():
+    """One island carried far off by its handles, the other at rest: the pose spans 100 times
+    the size, and rounding in the start's solve leaves its area 1e-8 off, under the rounding
+    bound of so large a sum; the projection must still correct it, not excuse it."""
+    graph = solver.build_graph([disk(1.0, 48), disk(0.7, 40, centre=(3.0, 0.0))])
+    carried = region(graph.points, (0.0, 0.0), 0.3)
+    targets = graph.points[carried] + [300.0, 120.0]
+    pose = solver.Deformer(graph, carried, preserve_area=True).solve(targets)
+    assert abs(graph.area(pose.positions) / graph.area() - 1.0) <= 1e-9
+
+
 @pytest.mark.parametrize("options", [{}, {"preserve_area": True}, {"prevent_flips": True}])
 def test_a_shape_far_from_the_origin_builds_binds_and_deforms_as_at_the_origin(options):
     """A star with a hole, a millionth of its offset in size. Triangulated in absolute
