@@ -45,6 +45,7 @@ class Binding:
 
     def __init__(self, weights):
         self.weights = csr_matrix(weights)
+        self._row_sums = np.asarray(self.weights.sum(axis=1)).ravel()
 
     def __len__(self):
         return self.weights.shape[0]
@@ -60,7 +61,14 @@ class Binding:
         -------
         (p, 2) float64 ndarray
         """
-        return self.weights @ np.asarray(positions, dtype=np.float64)
+        positions = np.asarray(positions, dtype=np.float64)
+        if len(positions) == 0:
+            return self.weights @ positions
+        # Applied to positions about their centre (and the centre added back, weighted by each
+        # row's sum), so a shape far from the origin keeps the digits that extrapolated weights
+        # outside it would otherwise multiply away.
+        centre = 0.5 * (positions.min(axis=0) + positions.max(axis=0))
+        return self.weights @ (positions - centre) + self._row_sums[:, None] * centre
 
 
 def _barycentric(points, a, b, c):
