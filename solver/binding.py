@@ -24,6 +24,9 @@ __all__ = ["Binding", "bind"]
 # Triangles (by nearest centroid) or boundary edges (by nearest midpoint) looked at first per
 # point; more are looked at for points where these might miss one that matters.
 CANDIDATES = 12
+# Positions whose centre lies more than FAR times their extent from the origin are applied
+# about their centre.
+FAR = 1000.0
 # Barycentric coordinates above -INSIDE count as inside a triangle.
 INSIDE = 1e-12
 # Triangles whose doubled area is below FLAT times their longest side squared are not bound to.
@@ -64,11 +67,16 @@ class Binding:
         positions = np.asarray(positions, dtype=np.float64)
         if len(positions) == 0:
             return self.weights @ positions
-        # Applied to positions about their centre (and the centre added back, weighted by each
-        # row's sum), so a shape far from the origin keeps the digits that extrapolated weights
-        # outside it would otherwise multiply away.
-        centre = 0.5 * (positions.min(axis=0) + positions.max(axis=0))
-        return self.weights @ (positions - centre) + self._row_sums[:, None] * centre
+        low, high = positions.min(axis=0), positions.max(axis=0)
+        centre = 0.5 * (low + high)
+        if np.abs(centre).max() <= FAR * np.abs(high - low).max():
+            return self.weights @ positions
+        # Far from the origin, applied about the positions' centre (added back weighted by each
+        # row's sum), so the digits that extrapolated weights outside the shape would multiply
+        # away are kept.
+        result = self.weights @ (positions - centre)
+        result += self._row_sums[:, None] * centre
+        return result
 
 
 def _barycentric(points, a, b, c):
