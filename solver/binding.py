@@ -247,7 +247,7 @@ def bind(graph, points):
     # up); their neighbours cover the same ground.
     corners = graph_points[triangles]
     sides = corners - np.roll(corners, 1, axis=1)
-    cross = np.abs(np.cross(sides[:, 0], sides[:, 1]))
+    cross = np.abs(sides[:, 0, 0] * sides[:, 1, 1] - sides[:, 0, 1] * sides[:, 1, 0])
     fair = cross > FLAT * np.einsum("tkc,tkc->tk", sides, sides).max(axis=1)
     if fair.any():
         triangles = triangles[fair]
