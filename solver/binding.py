@@ -19,6 +19,8 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.spatial import cKDTree
 
+from .shapes import box_centre
+
 __all__ = ["Binding", "bind"]
 
 # Triangles (by nearest centroid) or boundary edges (by nearest midpoint) looked at first per
@@ -241,7 +243,7 @@ def bind(graph, points):
     # Barycentric coordinates from coordinates centred on the graph keep their digits when the
     # shape lies far from the origin.
     graph_points = np.asarray(graph.points, dtype=np.float64)
-    centre = 0.5 * (graph_points.min(axis=0) + graph_points.max(axis=0))
+    centre = box_centre(graph_points)
     graph_points, points = graph_points - centre, points - centre
     # Flat triangles carry no affine map worth following (their barycentric coordinates blow
     # up); their neighbours cover the same ground.

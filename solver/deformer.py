@@ -42,6 +42,7 @@ from .folds import FoldPenalty
 from .graph import build_graph
 from .hessian import Hessian, PaperMatrix
 from .outline import outline_graph
+from .shapes import box_centre
 from .two_grid import TwoGrid
 
 __all__ = ["Deformer", "Solution", "DEFAULT_MAX_ITERATIONS", "DEFAULT_TOLERANCE"]
@@ -162,7 +163,7 @@ class _AreaConstraint:
         self._fixed_fixed = shoelace[stacked_fixed][:, stacked_fixed].tocsr()
         self._free_free_magnitude = abs(self._free_free)
         self._fixed_magnitude = (np.zeros(len(stacked_free)), 0.0)
-        centred = graph.points - 0.5 * (graph.points.min(axis=0) + graph.points.max(axis=0))
+        centred = graph.points - box_centre(graph.points)
         rest = np.concatenate([centred[:, 0], centred[:, 1]])
         self.rest = 0.5 * float(rest @ (shoelace @ rest))
         self._linear = np.zeros(len(stacked_free))
@@ -350,7 +351,7 @@ class Deformer:
             # Solved about the rest shape's centre: the pull is what settles turns and scales the
             # handles leave open (a single handle point), and far from the origin its rounding
             # turned a shape 1e6 times smaller than its offset by more than its size.
-            self._similarity_origin = 0.5 * (graph.points.min(axis=0) + graph.points.max(axis=0))
+            self._similarity_origin = box_centre(graph.points)
             self._similarity_rest_pull = tiny * (graph.points[self.free] - self._similarity_origin).T.ravel()
             self._similarity_factor = qdldl.Solver(triu(normal, format="csc"), upper=True)
         self._area = _AreaConstraint(graph, self.free, self._fixed) if self.preserve_area else None
@@ -445,7 +446,7 @@ class Deformer:
         # The energy ignores translation, but rounding in the area (a sum of products of
         # coordinates) does not: a shape dragged 100 times its size away kept its area to only
         # 3e-6. So iterate on coordinates centred on the start pose.
-        origin = 0.5 * (positions.min(axis=0) + positions.max(axis=0))
+        origin = box_centre(positions)
         local = positions - origin
         fixed = local[self._fixed]
         fixed_rows = (self._fixed_columns @ fixed).T.ravel()

@@ -11,7 +11,13 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["signed_area", "clean_ring", "shape_geometry", "geometry_rings", "nesting_depth"]
+__all__ = ["box_centre", "signed_area", "clean_ring", "shape_geometry", "geometry_rings", "nesting_depth"]
+
+
+def box_centre(points):
+    """Centre of the bounding box of ``points`` (n, 2): the origin that computations far from
+    the coordinate origin shift to, so their rounding scales with the shape, not its offset."""
+    return 0.5 * (points.min(axis=0) + points.max(axis=0))
 
 
 def signed_area(ring):

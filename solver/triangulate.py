@@ -13,6 +13,8 @@ import numpy as np
 import shapely
 from scipy.spatial import Delaunay, cKDTree
 
+from .shapes import box_centre
+
 __all__ = ["conforming_triangulation", "filtered_delaunay", "edges_of_triangles",
            "orient_counter_clockwise", "triangle_cross"]
 
@@ -79,7 +81,7 @@ def filtered_delaunay(points, geometry, min_area=0.0):
     # Qhull works in absolute coordinates: a shape far from the origin (a millionth of its
     # offset in size) loses the digits it needs and leaves boundary segments out, which the
     # conforming loop then splits round after round. Centred, it keeps them.
-    simplices = Delaunay(points - 0.5 * (points.min(axis=0) + points.max(axis=0))).simplices
+    simplices = Delaunay(points - box_centre(points)).simplices
     centroid = points[simplices].mean(axis=1)
     cross = triangle_cross(points, simplices)
     inside = shapely.contains_xy(geometry, centroid[:, 0], centroid[:, 1])
