@@ -26,9 +26,8 @@ anyway, and a grease-pencil rig's own drawing must keep its baked frame's pose).
 import bpy
 import numpy as np
 from bpy.props import IntProperty
-from bpy_extras import anim_utils
 
-from . import rig
+from . import compat, rig
 from .sources import RigError
 
 PREFIX = "sd_bake_"
@@ -95,14 +94,14 @@ def _channelbag(owner, id_type, name):
         animation.action = action
     slot = animation.action_slot or action.slots.new(id_type=id_type, name=owner.name)
     animation.action_slot = slot
-    return anim_utils.action_ensure_channelbag_for_slot(action, slot)
+    return compat.ensure_channelbag(action, slot)
 
 
 def _existing_channelbag(owner):
     animation = owner.animation_data
     if animation is None or animation.action is None or animation.action_slot is None:
         return None
-    return anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+    return compat.channelbag(animation.action, animation.action_slot)
 
 
 def _add_fcurve(bag, path, index, frames, values):

@@ -1,9 +1,34 @@
 #!/usr/bin/env bash
-# Set up (or reuse) the environment and run the whole test suite.
-#   bash tools/test.sh [pytest args]          Blender 5.0 (Python 3.11)
-#   BLENDER=5.1 bash tools/test.sh            Blender 5.1 (Python 3.13)
-set -euo pipefail
+# Set up (or reuse) the environments and run the whole test suite.
+#   bash tools/test.sh [pytest args]             the oldest and newest LTS: Blender 4.5, then 5.2
+#   BLENDER=5.0 bash tools/test.sh [pytest args] one version only (4.5, 5.0, 5.1 or 5.2)
+# Exits non-zero when any version's run fails; every version runs regardless.
+set -uo pipefail
 cd "$(dirname "$0")/.."
-source tools/setup_env.sh
-echo "Running tests under Blender $BLENDER ($("$PYTHON" --version))"
-exec "$PYTHON" -m pytest tests "$@"
+
+run_one() {
+  (
+    set -e
+    BLENDER="$1"
+    source tools/setup_env.sh
+    echo "Running tests under Blender $BLENDER ($("$PYTHON" --version))"
+    "$PYTHON" -m pytest tests "${@:2}"
+  )
+}
+
+if [ -n "${BLENDER:-}" ]; then
+  run_one "$BLENDER" "$@"
+  exit $?
+fi
+
+status=0
+summary=()
+for version in 4.5 5.2; do
+  start=$SECONDS
+  run_one "$version" "$@"
+  rc=$?
+  [ $rc -ne 0 ] && status=1
+  summary+=("Blender $version: exit $rc in $((SECONDS - start)) s")
+done
+printf '%s\n' "${summary[@]}"
+exit $status

@@ -1,0 +1,38 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Where Blender's Python API differs between the versions the manifest claims (4.5 LTS on).
+
+Each function here hides one difference, found by feature rather than by version number, so
+the rest of the add-on calls one name on every Blender. Nothing here is registered.
+
+- Keyframes live in an action's channelbag for a slot (Blender 4.4+). Blender 5.0 added
+  ``bpy_extras.anim_utils.action_ensure_channelbag_for_slot``; 4.5 has only the getter, and
+  the same is reached through the action's first layer and keyframe strip.
+"""
+
+from bpy_extras import anim_utils
+
+
+def ensure_channelbag(action, slot):
+    """The channelbag of ``action`` for ``slot``, made (with a layer and strip) when missing.
+
+    Parameters
+    ----------
+    action : bpy.types.Action
+    slot : bpy.types.ActionSlot
+        One of ``action.slots``.
+
+    Returns
+    -------
+    bpy.types.ActionChannelbag
+    """
+    ensure = getattr(anim_utils, "action_ensure_channelbag_for_slot", None)
+    if ensure is not None:
+        return ensure(action, slot)
+    layer = action.layers[0] if action.layers else action.layers.new("Layer")
+    strip = layer.strips[0] if layer.strips else layer.strips.new(type="KEYFRAME")
+    return strip.channelbag(slot, ensure=True)
+
+
+def channelbag(action, slot):
+    """The channelbag of ``action`` for ``slot``, or None when it has none."""
+    return anim_utils.action_get_channelbag_for_slot(action, slot)
