@@ -9,6 +9,7 @@ import numpy as np
 
 from ... import solver
 from ...solver.outline import boundary_loops, outline_graph, smallest_angles
+from ...solver.rigging.plane import fit_plane
 from . import Prepared, RigError
 
 REST_ATTRIBUTE = "sd_rest"
@@ -50,7 +51,7 @@ def prepare(obj, settings):
         raise RigError(f"'{obj.name}' has no vertices")
     rest = positions(mesh)
     try:
-        plane = solver.fit_plane(rest)
+        plane = fit_plane(rest)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     flat = plane.to_2d(rest)

@@ -1,14 +1,14 @@
-"""solver.outline and solver.silhouette: mesh boundaries, Bezier outlines, stroke and image
+"""solver.outline and solver.rigging.silhouette: mesh boundaries, Bezier outlines, stroke and image
 silhouettes, and the affine fit used to map a picture's UVs onto its cut-out."""
 
 import numpy as np
 import pytest
 import shapely
 
-from solver.handles import apply_affine
 from solver.outline import boundary_loops, sample_bezier, spacing_for_count
+from solver.rigging.handles import apply_affine
+from solver.rigging.silhouette import fit_affine, image_cutout, stroke_silhouette
 from solver.shapes import shape_geometry
-from solver.silhouette import fit_affine, image_cutout, stroke_silhouette
 
 from conftest import disk
 
