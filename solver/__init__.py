@@ -12,8 +12,9 @@ A Blender-free library: numpy and scipy in, numpy out.
 Public names: :func:`build_graph`, :class:`Graph`, :class:`Deformer`, :func:`trace_silhouette`,
 :func:`bind` and :class:`Binding`.
 
-The Blender add-on's own helpers (planes, handles, dragging, stroke silhouettes, picture
-cut-outs) live in the subpackage :mod:`solver.rigging`, which this package never imports.
+The Blender add-on's own helpers (planes, handles, dragging, outlines of meshes and curves,
+stroke silhouettes, picture cut-outs) live in the subpackage :mod:`solver.rigging`, which this
+package never imports.
 """
 
 from .binding import Binding, bind

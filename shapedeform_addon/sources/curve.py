@@ -11,7 +11,8 @@ spline its points. The rest points are kept as the ID property ``sd_rest`` of th
 
 import numpy as np
 
-from ...solver.outline import outline_graph, sample_bezier
+from ...solver.outline import outline_graph
+from ...solver.rigging.outline import sample_bezier
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from . import Prepared, RigError

@@ -8,7 +8,8 @@ unbinding gives back the mesh bit for bit and the rig survives save and reload.
 import numpy as np
 
 from ... import solver
-from ...solver.outline import boundary_loops, outline_graph, smallest_angles
+from ...solver.outline import outline_graph
+from ...solver.rigging.outline import boundary_loops, smallest_angles
 from ...solver.rigging.plane import fit_plane
 from . import Prepared, RigError
 
