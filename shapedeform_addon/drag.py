@@ -15,7 +15,7 @@ import bpy
 import numpy as np
 from bpy_extras import view3d_utils
 
-from ..solver.drag import nearest, parent_offset, ray_plane, transform_points, world_plane
+from ..solver.rigging.drag import nearest, parent_offset, ray_plane, transform_points, world_plane
 from . import handles, rig
 from .sources import RigError
 

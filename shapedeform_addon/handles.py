@@ -10,7 +10,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from ..solver.handles import frame_2d, handle_matrix, region_offsets, rest_position, select_region
+from ..solver.rigging.handles import (frame_2d, handle_matrix, region_offsets, rest_position,
+                                      select_region)
 from . import rig as rigs
 from .sources import RigError
 

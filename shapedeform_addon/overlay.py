@@ -8,7 +8,7 @@ to the GPU, which has no context without a window.
 import bpy
 import numpy as np
 
-from ..solver.plane import transform_points
+from ..solver.rigging.plane import transform_points
 from . import rig as rigs
 from .sources import RigError
 

@@ -19,7 +19,8 @@ import bpy
 import numpy as np
 
 from .. import solver
-from ..solver.handles import frame_2d, region_targets
+from ..solver.rigging.handles import frame_2d, region_targets
+from ..solver.rigging.plane import Plane
 from . import sources
 from .sources import RigError
 
@@ -34,7 +35,7 @@ class Rig:
         self.source = sources.module_for(obj)
         rest = self.source.read_rest(obj)
         try:
-            self.plane = solver.Plane.from_array(settings["plane"])
+            self.plane = Plane.from_array(settings["plane"])
             n = len(settings["graph_points"]) // 2
             points = np.asarray(settings["graph_points"], dtype=np.float64).reshape(n, 2)
             loops = np.split(np.asarray(settings["graph_loops"], dtype=np.int64),

@@ -11,6 +11,10 @@ A Blender-free library: numpy and scipy in, numpy out.
 
 Public names: :func:`build_graph`, :class:`Graph`, :class:`Deformer`, :func:`trace_silhouette`,
 :func:`bind` and :class:`Binding`.
+
+The Blender add-on's own helpers (planes, handles, dragging, outlines of meshes and curves,
+stroke silhouettes, picture cut-outs) live in the subpackage :mod:`solver.rigging`, which this
+package never imports.
 """
 
 from .binding import Binding, bind
@@ -19,9 +23,3 @@ from .graph import Graph, build_graph
 from .trace import trace_silhouette
 
 __all__ = ["Graph", "build_graph", "Deformer", "Solution", "trace_silhouette", "bind", "Binding"]
-
-# Rigging helpers for the Blender add-on (plane fitting, handles, outlines, silhouettes).
-from . import handles, outline, plane, silhouette  # noqa: E402
-from .plane import Plane, fit_plane  # noqa: E402
-
-__all__ += ["plane", "handles", "outline", "silhouette", "Plane", "fit_plane"]

@@ -1,5 +1,5 @@
-"""Outlines of Blender-style geometry: boundary loops of triangle meshes, sampled Bezier splines,
-and the graph spacing that gives a chosen number of points.
+"""The paper's graph for an outline given a number of points rather than a spacing: the spacing
+that gives about that many points, and the outline simplified to it.
 """
 
 from __future__ import annotations
@@ -8,91 +8,7 @@ import numpy as np
 
 from .shapes import shape_geometry
 
-__all__ = ["boundary_loops", "sample_bezier", "spacing_for_count", "smallest_angles", "simplify_rings",
-           "outline_graph"]
-
-
-def boundary_loops(triangles):
-    """Closed loops of the edges used by exactly one triangle.
-
-    Parameters
-    ----------
-    triangles : (t, 3) array_like of int
-
-    Returns
-    -------
-    list of (k,) int64 ndarray
-        Vertex indices of each loop in order (orientation not fixed).
-
-    Raises
-    ------
-    ValueError
-        No triangles, or a boundary that does not split into simple loops (a vertex where
-        several boundary pieces meet: a non-manifold mesh).
-    """
-    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    if len(triangles) == 0:
-        raise ValueError("it has no faces")
-    directed = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    undirected = np.sort(directed, axis=1)
-    _, inverse, counts = np.unique(undirected, axis=0, return_inverse=True, return_counts=True)
-    boundary = directed[counts[inverse.ravel()] == 1]
-    if len(boundary) == 0:
-        raise ValueError("it has no boundary (a closed surface is not a flat shape)")
-    starts, ends = boundary[:, 0], boundary[:, 1]
-    if len(np.unique(starts)) != len(starts) or len(np.unique(ends)) != len(ends):
-        raise ValueError("its boundary is not manifold: several boundary edges meet at one vertex")
-    following = dict(zip(starts.tolist(), ends.tolist()))
-    loops = []
-    # Walking a loop is sequential by nature; it runs once at bind time over boundary vertices.
-    while following:
-        first, current = next(iter(following.items()))
-        loop = [first]
-        del following[first]
-        while current != first:
-            loop.append(current)
-            nxt = following.pop(current, None)
-            if nxt is None:
-                raise ValueError("its boundary edges do not form closed loops")
-            current = nxt
-        loops.append(np.array(loop, dtype=np.int64))
-    return loops
-
-
-def sample_bezier(points, left, right, cyclic, resolution=12):
-    """Points along a cubic Bezier spline, as Blender draws it.
-
-    Parameters
-    ----------
-    points, left, right : (k, d) array_like
-        Control points and their left and right handles.
-    cyclic : bool
-        Whether the last segment joins the last point to the first.
-    resolution : int
-        Samples per segment (Blender's ``resolution_u``).
-
-    Returns
-    -------
-    (m, d) float64 ndarray
-        Each segment's samples from its start (excluded end); an open spline also gets its last
-        point.
-    """
-    p0 = np.asarray(points, dtype=np.float64)
-    left = np.asarray(left, dtype=np.float64)
-    right = np.asarray(right, dtype=np.float64)
-    resolution = max(int(resolution), 1)
-    nxt = np.roll(np.arange(len(p0)), -1)
-    if not cyclic:
-        nxt = nxt[:-1]
-    start = np.arange(len(nxt))
-    a, b, c, d = p0[start], right[start], left[nxt], p0[nxt]
-    t = (np.arange(resolution) / resolution)[None, :, None]
-    s = 1.0 - t
-    curve = (s ** 3 * a[:, None] + 3 * s * s * t * b[:, None] + 3 * s * t * t * c[:, None]
-             + t ** 3 * d[:, None]).reshape(-1, p0.shape[1])
-    if not cyclic:
-        curve = np.concatenate([curve, p0[-1:]])
-    return curve
+__all__ = ["spacing_for_count", "simplify_rings", "outline_graph"]
 
 
 def spacing_for_count(rings, count):
@@ -110,30 +26,6 @@ def spacing_for_count(rings, count):
     if count < 1:
         raise ValueError(f"count must be positive, got {count}")
     return float(np.sqrt(shape_geometry(rings).area / count))
-
-
-def smallest_angles(points, triangles):
-    """Smallest interior angle of each triangle, in radians: how far from a sliver it is.
-
-    Parameters
-    ----------
-    points : (n, 2) array_like
-    triangles : (t, 3) array_like of int
-
-    Returns
-    -------
-    (t,) float64 ndarray
-        0 for a degenerate triangle.
-    """
-    points = np.asarray(points, dtype=np.float64)
-    corners = points[np.asarray(triangles, dtype=np.int64).reshape(-1, 3)]
-    sides = np.roll(corners, -1, axis=1) - corners          # edge k runs from corner k to k + 1
-    lengths = np.linalg.norm(sides, axis=2)
-    a, b = -np.roll(sides, 1, axis=1), sides                 # the two edges leaving each corner
-    cosine = np.einsum("tki,tki->tk", a, b) / np.maximum(np.roll(lengths, 1, axis=1) * lengths, 1e-300)
-    angles = np.arccos(np.clip(cosine, -1.0, 1.0))
-    angles[(lengths == 0).any(axis=1)] = 0.0
-    return angles.min(axis=1)
 
 
 def simplify_rings(rings, tolerance):

@@ -2,6 +2,8 @@
 """House rules of the repository, checked without Blender.
 
 - ``solver/`` stays Blender-free.
+- ``solver/`` proper (the paper's library) never imports ``solver.rigging`` (the add-on's
+  Blender-free helpers); the rigging modules may import ``solver``.
 - Add-on code follows the extension rules: no ``bl_info``, no ``sys.path``
   edits, the extension's own packages imported relatively.
 - The manifest ships exactly the wheels pinned in ``requirements-extension.txt``.
@@ -40,11 +42,32 @@ def parse(path):
     return ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
 
 
+def absolute_imports(path, tree):
+    """Yield the dotted name of every module (or module member) ``tree`` imports, relative
+    imports resolved against ``path``'s package."""
+    package = list(path.relative_to(ROOT).parts[:-1])  # a module's package, or __init__'s own
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            yield from (alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = package[:len(package) - node.level + 1] if node.level else []
+            module = ".".join(base + ([node.module] if node.module else []))
+            yield from (f"{module}.{alias.name}" for alias in node.names)
+
+
 def test_solver_does_not_import_blender():
     offenders = [f"{p.relative_to(ROOT)}: {name}"
                  for p in python_files("solver")
                  for name, level in imported_modules(parse(p))
                  if level == 0 and name in BLENDER_MODULES]
+    assert offenders == []
+
+
+def test_solver_proper_does_not_import_rigging():
+    offenders = [f"{p.relative_to(ROOT)}: {name}"
+                 for p in python_files("solver") if "rigging" not in p.relative_to(ROOT).parts
+                 for name in absolute_imports(p, parse(p))
+                 if name == "solver.rigging" or name.startswith("solver.rigging.")]
     assert offenders == []
 
 

@@ -32,7 +32,7 @@ class Prepared:
     ----------
     rest : (p, 3) float32 ndarray
         The points that follow the deformation, as the object stores them.
-    plane : solver.Plane
+    plane : solver.rigging.Plane
     graph : solver.Graph
     own_graph : bool
         The points are the graph's points (no binding needed).

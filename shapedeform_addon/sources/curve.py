@@ -11,9 +11,10 @@ spline its points. The rest points are kept as the ID property ``sd_rest`` of th
 
 import numpy as np
 
-from ... import solver
-from ...solver.outline import outline_graph, sample_bezier
-from ...solver.silhouette import stroke_silhouette
+from ...solver.outline import outline_graph
+from ...solver.rigging.outline import sample_bezier
+from ...solver.rigging.plane import fit_plane
+from ...solver.rigging.silhouette import stroke_silhouette
 from . import Prepared, RigError
 
 REST_PROPERTY = "sd_rest"
@@ -66,7 +67,7 @@ def prepare(obj, settings):
     if len(rest) == 0:
         raise RigError(f"'{obj.name}' has no control points")
     try:
-        plane = solver.fit_plane(rest)
+        plane = fit_plane(rest)
         flat = plane.to_2d(rest)
         rings, strokes = _rings_and_strokes(curve, flat)
         if not rings:

@@ -9,9 +9,9 @@ remembered on ``obj.shapedeform``.
 
 import numpy as np
 
-from ... import solver
 from ...solver.outline import outline_graph
-from ...solver.silhouette import stroke_silhouette
+from ...solver.rigging.plane import fit_plane
+from ...solver.rigging.silhouette import stroke_silhouette
 from . import Prepared, RigError
 from .mesh import REST_ATTRIBUTE, read_vectors
 
@@ -78,7 +78,7 @@ def prepare(obj, settings):
     if len(rest) == 0:
         raise RigError(f"'{obj.name}' has no stroke points on the current frame")
     try:
-        plane = solver.fit_plane(rest)
+        plane = fit_plane(rest)
         flat = plane.to_2d(rest)
         size = float(np.linalg.norm(np.ptp(flat, axis=0)))
         rings = stroke_silhouette(flat, np.concatenate(offsets), np.concatenate(radii), np.concatenate(cyclic),

@@ -11,10 +11,10 @@ given back on unbind, untouched; the cut-out is then deleted.
 import bpy
 import numpy as np
 
-from ... import solver
-from ...solver.handles import apply_affine
 from ...solver.outline import outline_graph
-from ...solver.silhouette import fit_affine, image_cutout
+from ...solver.rigging.handles import apply_affine
+from ...solver.rigging.plane import fit_plane
+from ...solver.rigging.silhouette import fit_affine, image_cutout
 from . import Prepared, RigError, mesh as mesh_source
 
 # Shared with meshes once the cut-out is in place.
@@ -55,7 +55,7 @@ def prepare(obj, settings):
     uv = np.empty(len(quad.loops) * 2, dtype=np.float32)
     quad.uv_layers.active.data.foreach_get("uv", uv)
     try:
-        plane = solver.fit_plane(corners)
+        plane = fit_plane(corners)
         to_plane = fit_affine(uv.reshape(-1, 2), plane.to_2d(corners[loop_vertices]))
         rings = [apply_affine(to_plane, ring / (width, height))
                  for ring in image_cutout(pixels.reshape(height, width, 4))]

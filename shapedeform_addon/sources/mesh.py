@@ -8,7 +8,9 @@ unbinding gives back the mesh bit for bit and the rig survives save and reload.
 import numpy as np
 
 from ... import solver
-from ...solver.outline import boundary_loops, outline_graph, smallest_angles
+from ...solver.outline import outline_graph
+from ...solver.rigging.outline import boundary_loops, smallest_angles
+from ...solver.rigging.plane import fit_plane
 from . import Prepared, RigError
 
 REST_ATTRIBUTE = "sd_rest"
@@ -50,7 +52,7 @@ def prepare(obj, settings):
         raise RigError(f"'{obj.name}' has no vertices")
     rest = positions(mesh)
     try:
-        plane = solver.fit_plane(rest)
+        plane = fit_plane(rest)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     flat = plane.to_2d(rest)

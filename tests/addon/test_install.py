@@ -4,14 +4,16 @@
 import importlib.metadata
 import json
 import os
+import pathlib
 import re
 import subprocess
 import sys
+import zipfile
 
 import bpy
 import addon_utils
 from blender_state import register_cycle
-from conftest import ADDON_MODULE, EXTENSION_ID, load_build_tool
+from conftest import ADDON_MODULE, EXTENSION_ID, ROOT, load_build_tool
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -43,6 +45,16 @@ def bpy_only_site(dest):
                     and not os.path.lexists(dst):
                 os.symlink(src, dst)
     return seen
+
+
+def test_zip_holds_every_solver_module(extension_zip):
+    # Subpackages too: the add-on imports solver.rigging.
+    root = pathlib.Path(ROOT)
+    modules = {p.relative_to(root).as_posix() for p in (root / "solver").rglob("*.py")
+               if "__pycache__" not in p.parts}
+    assert "solver/rigging/__init__.py" in modules
+    with zipfile.ZipFile(extension_zip) as zf:
+        assert modules - set(zf.namelist()) == set()
 
 
 def test_zip_installs_and_cycles_without_dev_packages(extension_zip, tmp_path):

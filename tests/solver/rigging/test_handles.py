@@ -1,12 +1,12 @@
-"""solver.handles: frames of handles, regions, and targets that carry regions."""
+"""solver.rigging.handles: frames of handles, regions, and targets that carry regions."""
 
 import numpy as np
 import pytest
 
 import solver
-from solver.handles import (apply_affine, frame_2d, handle_matrix, invert_affine, region_offsets,
-                            region_targets, rest_position, select_region)
-from solver.plane import fit_plane
+from solver.rigging.handles import (apply_affine, frame_2d, handle_matrix, invert_affine,
+                                    region_offsets, region_targets, rest_position, select_region)
+from solver.rigging.plane import fit_plane
 
 from conftest import disk
 

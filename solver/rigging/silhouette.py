@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from .shapes import _polygonal_part, geometry_rings, shape_geometry
-from .trace import trace_silhouette
+from ..shapes import _polygonal_part, geometry_rings, shape_geometry
+from ..trace import trace_silhouette
 
 __all__ = ["stroke_silhouette", "image_cutout", "fit_affine"]
 

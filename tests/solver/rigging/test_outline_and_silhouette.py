@@ -1,14 +1,14 @@
-"""solver.outline and solver.silhouette: mesh boundaries, Bezier outlines, stroke and image
-silhouettes, and the affine fit used to map a picture's UVs onto its cut-out."""
+"""solver.rigging.outline and solver.rigging.silhouette: mesh boundaries, Bezier outlines, stroke
+and image silhouettes, and the affine fit used to map a picture's UVs onto its cut-out."""
 
 import numpy as np
 import pytest
 import shapely
 
-from solver.handles import apply_affine
-from solver.outline import boundary_loops, sample_bezier, spacing_for_count
+from solver.rigging.handles import apply_affine
+from solver.rigging.outline import boundary_loops, sample_bezier
+from solver.rigging.silhouette import fit_affine, image_cutout, stroke_silhouette
 from solver.shapes import shape_geometry
-from solver.silhouette import fit_affine, image_cutout, stroke_silhouette
 
 from conftest import disk
 
@@ -49,11 +49,6 @@ def test_bezier_sampling_hits_control_points_and_is_a_circle():
     np.testing.assert_allclose(np.linalg.norm(curve, axis=1), 1.0, atol=3e-4)
     open_curve = sample_bezier(points, points - k * tangent, points + k * tangent, cyclic=False, resolution=8)
     assert len(open_curve) == 25 and np.allclose(open_curve[-1], points[-1])
-
-
-def test_spacing_for_count():
-    spacing = spacing_for_count([disk(1.0, 256)], 100)
-    assert spacing == pytest.approx(np.sqrt(np.pi / 100), rel=1e-3)
 
 
 def test_stroke_silhouette_is_the_swept_and_filled_union():
@@ -97,17 +92,7 @@ def test_fit_affine_recovers_a_map():
 
 
 def test_smallest_angles():
-    from solver.outline import smallest_angles
+    from solver.rigging.outline import smallest_angles
     points = np.array([[0, 0], [1, 0], [0.5, np.sqrt(3) / 2], [2, 0], [1, 1e-3], [0, 0]])
     angles = smallest_angles(points, [[0, 1, 2], [0, 3, 4], [0, 1, 5]])
     np.testing.assert_allclose(angles, [np.pi / 3, np.arctan(1e-3), 0.0], atol=1e-9)
-
-
-def test_outline_graph_of_a_dense_outline_has_about_count_points():
-    from solver.outline import outline_graph, simplify_rings
-    side = np.linspace(0, 1, 400, endpoint=False)
-    square = np.concatenate([np.stack([side, 0 * side], 1), np.stack([1 + 0 * side, side], 1),
-                             np.stack([1 - side, 1 + 0 * side], 1), np.stack([0 * side, 1 - side], 1)])
-    assert len(simplify_rings([square], 1e-3)[0]) == 4
-    graph = outline_graph([square], 100)
-    assert 100 < graph.n < 250

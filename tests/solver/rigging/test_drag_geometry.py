@@ -1,9 +1,9 @@
-"""solver.drag: rays meeting the rig's plane, picking, and moving a parented handle."""
+"""solver.rigging.drag: rays meeting the rig's plane, picking, and moving a parented handle."""
 
 import numpy as np
 import pytest
 
-from solver.drag import nearest, parent_offset, ray_plane, transform_points, world_plane
+from solver.rigging.drag import nearest, parent_offset, ray_plane, transform_points, world_plane
 
 
 def test_ray_meets_plane_on_either_side_of_its_origin():

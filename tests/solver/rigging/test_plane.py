@@ -1,9 +1,9 @@
-"""solver.plane: best-fit planes, their axes, and refusing shapes that are not flat."""
+"""solver.rigging.plane: best-fit planes, their axes, and refusing shapes that are not flat."""
 
 import numpy as np
 import pytest
 
-from solver.plane import Plane, fit_plane
+from solver.rigging.plane import Plane, fit_plane
 
 
 def square_3d(axes, origin=(0.0, 0.0, 0.0)):
@@ -60,7 +60,7 @@ def test_degenerate_points_are_refused(points, message):
 
 
 def test_transform_points():
-    from solver.plane import transform_points
+    from solver.rigging.plane import transform_points
     matrix = np.eye(4)
     matrix[:3, 3] = [1, 2, 3]
     matrix[0, 0] = 2.0

@@ -13,7 +13,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .binding import bind
+from ..binding import bind
 
 __all__ = ["frame_2d", "handle_matrix", "apply_affine", "invert_affine", "select_region",
            "region_offsets", "region_targets", "rest_position", "REGION_FRACTION"]
@@ -29,7 +29,7 @@ def frame_2d(plane, matrix):
 
     Parameters
     ----------
-    plane : solver.plane.Plane
+    plane : solver.rigging.plane.Plane
         The shape's plane, in the same space as ``matrix`` (the shape object's local space).
     matrix : (4, 4) array_like
         The handle's transform in that space.
@@ -51,7 +51,7 @@ def handle_matrix(plane, point, scale=1.0):
 
     Parameters
     ----------
-    plane : solver.plane.Plane
+    plane : solver.rigging.plane.Plane
     point : (2,) array_like
         Position in plane coordinates.
     scale : float
