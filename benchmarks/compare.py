@@ -34,7 +34,9 @@ from matplotlib.collections import PolyCollection  # noqa: E402
 import solver  # noqa: E402
 from benchmarks import metrics, peers  # noqa: E402
 from benchmarks.shapes import DRAGS, SHAPES, drag_targets  # noqa: E402
-from solver.deformer import COARSE_START_POINTS, TWO_GRID_MAX_POINTS  # noqa: E402
+from solver import Options  # noqa: E402
+
+COARSE_START_POINTS, TWO_GRID_MAX_POINTS = Options().coarse_start_points, Options().two_grid_max_points
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -557,7 +559,7 @@ def write_doc(path, rows, fig3, zero_note, fig4, width, fig5, scale_rows, args, 
     w("Horse, bend drag, graphs of about 500 to "
       + ("15,000 points" if args.skip_large else "50,000 points") + ". Ours: bind = building the `Deformer`, "
       "solve = one full solve (default iterations); back-sub = one back-substitution with our "
-      "factor (`deformer._hessian.solve` on both coordinates' right-hand sides), the floor under any "
+      "factor (`deformer._preconditioner.solve` on both coordinates' right-hand sides), the floor under any "
       "iteration of the paper's method. libigl ARAP with 10 iterations and Blender Laplacian "
       "Deform with 1 for reference. \"Newton steps\" counts our refactorisations. The shape's "
       "own factor is the paper's fixed one at every size; up to "

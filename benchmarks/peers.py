@@ -31,7 +31,7 @@ def fine_factor(deformer):
     """The factor one of ``deformer``'s iterations back-substitutes with, over the whole graph:
     the two-grid preconditioner's fine (paper's) factor, or with ``newton=True`` (and on graphs
     too small for a coarse copy) the Newton factor."""
-    return getattr(deformer._hessian, "_smoother", deformer._hessian)
+    return getattr(deformer._preconditioner, "_smoother", deformer._preconditioner)
 
 
 @dataclass

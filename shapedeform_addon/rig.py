@@ -28,10 +28,16 @@ _cache = {}
 
 
 class Rig:
-    """Solver objects of one bound object, rebuilt from its stored rest data."""
+    """Solver objects of one bound object, rebuilt from its stored rest data.
 
-    def __init__(self, obj):
+    ``previous``, the rig this one replaces (handles or settings changed), hands on its coarse
+    copies of the graph (:class:`solver.CoarseCopies`, keyed by the graph's points, so a copy
+    is only reused for the same shape): rebuilding after a handle edit then skips building them.
+    """
+
+    def __init__(self, obj, previous=None):
         settings = obj.shapedeform
+        self.coarse_copies = previous.coarse_copies if previous is not None else solver.CoarseCopies()
         self.source = sources.module_for(obj)
         rest = self.source.read_rest(obj)
         try:
@@ -66,7 +72,8 @@ class Rig:
         weights = {"laplacian": settings.weight_laplacian, "mvc": settings.weight_mvc, "edge": settings.weight_edge}
         try:
             self.deformer = solver.Deformer(self.graph, self.indices, weights, settings.preserve_area,
-                                            prevent_flips=settings.prevent_flips) \
+                                            prevent_flips=settings.prevent_flips,
+                                            coarse_copies=self.coarse_copies) \
                 if len(self.indices) else None
         except ValueError as err:
             raise RigError(f"'{obj.name}': {err}") from None
@@ -117,7 +124,7 @@ def get(obj):
     obj = obj.original
     rig = _cache.get(obj.session_uid)
     if rig is None or rig.signature != signature(obj):
-        rig = Rig(obj)
+        rig = Rig(obj, previous=rig)
         _cache[obj.session_uid] = rig
     return rig
 

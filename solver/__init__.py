@@ -9,8 +9,15 @@ A Blender-free library: numpy and scipy in, numpy out.
 >>> deformer = solver.Deformer(graph, left)
 >>> pose = deformer.solve(graph.points[left] + [0.0, 0.1]).positions
 
-Public names: :func:`build_graph`, :class:`Graph`, :class:`Deformer`, :func:`trace_silhouette`,
-:func:`bind` and :class:`Binding`.
+Public names: :func:`build_graph`, :class:`Graph`, :class:`Deformer`, :class:`Solution`,
+:class:`Options` (every knob of a solve), :class:`CoarseCopies` (coarse levels a caller keeps
+between deformers of one graph), :func:`trace_silhouette`, :func:`bind` and :class:`Binding`.
+
+Layout: what is minimised is in :mod:`~solver.energy` (the paper's terms), :mod:`~solver.folds`
+(the fold penalty), :mod:`~solver.area` (the area constraint) and :mod:`~solver.unknowns` (free
+and fixed points); how, in :mod:`~solver.optimizer`, over a preconditioner of
+:mod:`~solver.preconditioner`; from a start of :mod:`~solver.start`; :mod:`~solver.deformer`
+puts them together.
 
 The Blender add-on's own helpers (planes, handles, dragging, outlines of meshes and curves,
 stroke silhouettes, picture cut-outs) live in the subpackage :mod:`solver.rigging`, which this
@@ -20,6 +27,9 @@ package never imports.
 from .binding import Binding, bind
 from .deformer import Deformer, Solution
 from .graph import Graph, build_graph
+from .options import Options
+from .start import CoarseCopies
 from .trace import trace_silhouette
 
-__all__ = ["Graph", "build_graph", "Deformer", "Solution", "trace_silhouette", "bind", "Binding"]
+__all__ = ["Graph", "build_graph", "Deformer", "Solution", "Options", "CoarseCopies", "trace_silhouette",
+           "bind", "Binding"]

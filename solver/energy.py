@@ -23,6 +23,7 @@ parts of ``A V``, ``rows[1]`` the y parts, so x and y stack into one flat vector
 
 from __future__ import annotations
 
+from types import MappingProxyType
 from typing import NamedTuple
 
 import numpy as np
@@ -30,7 +31,8 @@ from scipy.sparse import coo_matrix, vstack
 
 __all__ = ["DEFAULT_WEIGHTS", "Energy", "LocalFit", "mean_value_weights", "similarity_rows"]
 
-DEFAULT_WEIGHTS = {"laplacian": 1.0, "mvc": 1.0, "edge": 1.0}
+# Read-only: a module-level dict would be state shared by every caller.
+DEFAULT_WEIGHTS = MappingProxyType({"laplacian": 1.0, "mvc": 1.0, "edge": 1.0})
 
 # Angles are kept inside (0, pi) by this margin: tan(alpha / 2) blows up as alpha nears pi.
 _ANGLE_MARGIN = 1e-6

@@ -2,8 +2,9 @@
 
 The paper's energy (equation 6) has minima with folded triangles in large bends, where a dragged
 region meets the rest: nothing in it measures orientation. With ``Deformer(prevent_flips=True)``
-each triangle of the graph whose signed area ``a`` falls below ``FOLD_THRESHOLD`` times its rest
-area ``a0`` adds ``FOLD_WEIGHT * a0 * (FOLD_THRESHOLD - a / a0)^2``. Above the threshold the term
+each triangle of the graph whose signed area ``a`` falls below ``threshold`` times its rest
+area ``a0`` adds ``weight * a0 * (threshold - a / a0)^2`` (``Options.fold_threshold`` and
+``Options.fold_weight``, 0.1 and 100 by default). Above the threshold the term
 is zero, so a pose that squeezes no triangle that far is a minimum of the paper's energy
 unchanged; in big bends it holds the folds open at a small price in energy.
 
@@ -11,8 +12,8 @@ The weight per triangle scales with its area, as the paper's rows scale with the
 the balance between the two does not depend on the graph's density. Its stiffness, though, goes
 as ``1 / a0``: a near-degenerate triangle (two boundary points a hair apart, common where curve
 segments meet) would be thousands of times stiffer than its neighbours, while its orientation
-means nothing. Such slivers are weighted as if their area were ``SLIVER_AREA`` times their
-longest edge squared. On the benchmark character's standard drag (a boundary about six times
+means nothing. Such slivers are weighted as if their area were ``Options.sliver_area`` times
+their longest edge squared (0.05: a height under a tenth of the longest edge). On the benchmark character's standard drag (a boundary about six times
 denser than its lattice), steps that barely moved the shape turned such triangles inside out
 hundreds of times over, the line search halved up to 12 times per iteration, and the solve
 stopped at its 30-iteration cap; with the bound (and :func:`solver.build_graph` merging ring
@@ -26,19 +27,11 @@ gradients are sparse mat-vecs.
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import block_diag, coo_matrix
+from scipy.sparse import coo_matrix
 
 from .triangulate import triangle_cross
 
-__all__ = ["FoldPenalty", "FOLD_THRESHOLD", "FOLD_WEIGHT", "SLIVER_AREA"]
-
-# Triangles squeezed below this fraction of their rest area are pushed back open.
-FOLD_THRESHOLD = 0.1
-# Penalty weight, relative to the paper's terms (both are in squared lengths).
-FOLD_WEIGHT = 100.0
-# Area per squared longest edge below which a triangle counts as a sliver, whose stiffness is
-# bounded (an equilateral triangle has 0.43; 0.05 is a height under a tenth of the longest edge).
-SLIVER_AREA = 0.05
+__all__ = ["FoldPenalty"]
 
 
 class FoldPenalty:
@@ -47,11 +40,13 @@ class FoldPenalty:
     Parameters
     ----------
     graph : solver.Graph
-    free, fixed : (f,) and (c,) int ndarray
-        Free and fixed point indices, as the deformer splits them.
+    unknowns : solver.unknowns.Unknowns
+        The deformer's split into free and fixed points.
+    threshold, weight, sliver_area : float
+        ``Options.fold_threshold``, ``Options.fold_weight`` and ``Options.sliver_area``.
     """
 
-    def __init__(self, graph, free, fixed):
+    def __init__(self, graph, unknowns, threshold, weight, sliver_area):
         triangles = graph.triangles
         count = len(triangles)
         ones = np.ones(count)
@@ -60,21 +55,18 @@ class FoldPenalty:
         edges = coo_matrix((np.concatenate([ones, -ones, ones, -ones]),
                             (np.concatenate([first, first, second, second]),
                              np.concatenate([triangles[:, 1], triangles[:, 0], triangles[:, 2], triangles[:, 0]]))),
-                           shape=(2 * count, graph.n)).tocsc()
-        free_columns = edges[:, free]
-        self._free_block = block_diag([free_columns, free_columns], format="csr")
-        self._free_block_transpose = self._free_block.T.tocsr()
-        self._fixed_columns = edges[:, fixed].tocsr()
+                           shape=(2 * count, graph.n))
+        self._free_block, self._free_block_transpose, self._fixed_columns = unknowns.split(edges)
         self._fixed_edges = np.zeros(4 * count)
         rest_area = 0.5 * triangle_cross(graph.points, triangles)
-        # FOLD_WEIGHT * a0 * (threshold - a / a0)^2 = scale * (floor - a)^2, with a0 in the
+        # weight * a0 * (threshold - a / a0)^2 = scale * (floor - a)^2, with a0 in the
         # scale bounded below for slivers.
         corners = graph.points[triangles]
         sides = corners - np.roll(corners, 1, axis=1)
         longest = np.einsum("tkc,tkc->tk", sides, sides).max(axis=1, initial=0.0)
-        stiffness_area = np.maximum(rest_area, SLIVER_AREA * longest)
-        self._scale = FOLD_WEIGHT / np.where(rest_area > 0, stiffness_area, np.inf)
-        self._floor = FOLD_THRESHOLD * rest_area
+        stiffness_area = np.maximum(rest_area, sliver_area * longest)
+        self._scale = weight / np.where(rest_area > 0, stiffness_area, np.inf)
+        self._floor = threshold * rest_area
         self.triangles = triangles
 
     def hold(self, fixed_positions):

@@ -27,7 +27,7 @@ import numpy as np
 import qdldl
 from scipy.sparse import block_diag, coo_matrix, csc_matrix, csr_matrix, triu
 
-__all__ = ["Hessian"]
+__all__ = ["Hessian", "PaperMatrix"]
 
 # c_k <= 1 - CLAMP keeps H >= CLAMP * [K 0; 0 K]: positive definite, however the shape turns.
 CLAMP = 1e-3
@@ -51,6 +51,8 @@ class Hessian:
     -----
     Unknowns are stacked ``[x of free points; y of free points]`` (length ``2 f``).
     """
+
+    follows_pose = True
 
     def __init__(self, energy, free, triangles=None, upper=True):
         self.energy = energy
@@ -242,6 +244,8 @@ class PaperMatrix:
     to refactor; this one never changes, so an iteration costs one back-substitution per
     coordinate, as in the paper. Same interface as :class:`Hessian`.
     """
+
+    follows_pose = False
 
     def __init__(self, energy, free):
         columns = energy.matrix.tocsc()[:, free]

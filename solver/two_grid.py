@@ -37,9 +37,6 @@ __all__ = ["TwoGrid"]
 
 # Keeps the coarse matrix definite where the fine free points hardly move a coarse point.
 _REGULARISATION = 1e-10
-# Fold penalty terms (squeezed triangles) taken into the smoother at most: each costs one
-# back-substitution per refresh.
-MAX_FOLD_TERMS = 32
 # Fine matrix entries handled at once while building the Galerkin map.
 _CHUNK = 20000
 
@@ -61,6 +58,8 @@ class TwoGrid:
         :class:`~solver.binding.Binding`'s rows for them).
     triangles : (t, 3) int ndarray, optional
         With the fold penalty: its triangles, whose terms :meth:`factorize` then takes.
+    max_fold_terms : int
+        Fold-penalty terms the smoother takes in at most (``Options.max_fold_terms``).
 
     Notes
     -----
@@ -68,12 +67,15 @@ class TwoGrid:
     go into the smoother as well as the Newton matrix: ``(K + G G^T)^-1`` by the Woodbury
     identity, one back-substitution with ``K``'s factor per term and refresh. That keeps the
     smoother above the matrix and the cycle a descent direction; the factor itself is not
-    touched. At most ``MAX_FOLD_TERMS`` of them are taken (the stiffest), L-BFGS learns the rest.
+    touched. At most ``max_fold_terms`` of them are taken (the stiffest), L-BFGS learns the rest.
     Without them, the character's standard drag with the penalty had not converged after 200
     iterations.
     """
 
-    def __init__(self, energy, free, prolongation, triangles=None):
+    follows_pose = True
+
+    def __init__(self, energy, free, prolongation, triangles=None, max_fold_terms=32):
+        self._max_fold_terms = int(max_fold_terms)
         self._smoother = PaperMatrix(energy, free)
         self._triangles = triangles
         self._slot = -np.ones(energy.n, dtype=np.int64)
@@ -112,10 +114,10 @@ class TwoGrid:
             return None
         coefficient, u = fold_terms
         active = np.flatnonzero(coefficient)
-        if len(active) > MAX_FOLD_TERMS:
+        if len(active) > self._max_fold_terms:
             stiffness = -coefficient[active] * np.einsum("tk,tk->t", u[active], u[active])
             coefficient = coefficient.copy()
-            weakest = np.argsort(stiffness)[:len(active) - MAX_FOLD_TERMS]
+            weakest = np.argsort(stiffness)[:len(active) - self._max_fold_terms]
             coefficient[active[weakest]] = 0.0
         return coefficient, u
 

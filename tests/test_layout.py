@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """House rules of the repository, checked without Blender.
 
-- ``solver/`` stays Blender-free.
+- ``solver/`` stays Blender-free and keeps no module-level caches: a caller that wants to keep
+  coarse levels or factors between deformers owns them (``solver.CoarseCopies``).
 - ``solver/`` proper (the paper's library) never imports ``solver.rigging`` (the add-on's
   Blender-free helpers); the rigging modules may import ``solver``.
 - Add-on code follows the extension rules: no ``bl_info``, no ``sys.path``
@@ -115,3 +116,17 @@ def test_manifest_wheels_match_the_pins():
     assert set(shipped) == expected, "run: python tools/build_extension.py --update-manifest"
     assert all(len(wheels) == 1 for wheels in shipped.values())
     assert "numpy" not in pins, "numpy ships with Blender and must never be bundled"
+
+
+def test_solver_keeps_no_module_level_containers():
+    """A dict, list or set bound at module level in the library is state shared by every caller."""
+    containers = (ast.Dict, ast.List, ast.Set, ast.DictComp, ast.ListComp, ast.SetComp)
+    offenders = []
+    for path in python_files("solver"):
+        for node in parse(path).body:
+            value = getattr(node, "value", None)
+            is_call = isinstance(value, ast.Call) and getattr(value.func, "id", "") in {"dict", "list", "set"}
+            targets = [t.id for t in getattr(node, "targets", [getattr(node, "target", None)]) if isinstance(t, ast.Name)]
+            if (isinstance(value, containers) or is_call) and targets != ["__all__"]:
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno}")
+    assert not offenders, f"module-level containers in solver/: {offenders}"

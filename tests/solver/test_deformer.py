@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 import solver
-from solver.folds import FOLD_WEIGHT, SLIVER_AREA, FoldPenalty
+from solver.folds import FoldPenalty
+from solver.unknowns import Unknowns
 from solver.triangulate import triangle_cross
 from conftest import disk, figure_rings, glyph_rings, hooves_and_head, region
 
@@ -79,7 +80,7 @@ def test_a_solve_converging_at_its_tenth_iteration_pays_no_late_refresh():
     targets = points[handles] + np.where(np.isin(handles, dragged)[:, None], [-0.25 * size, 0.2 * size], 0.0)
     pose = solver.Deformer(graph, handles).solve(targets)
     assert pose.converged and pose.iterations <= 10
-    assert pose.factorizations <= solver.deformer.NEWTON_STEPS
+    assert pose.factorizations <= solver.Options().refreshes
 
 
 def test_moving_handles_never_refactorises_the_shapes_matrix(horse_graph, horse_drag):
@@ -87,7 +88,7 @@ def test_moving_handles_never_refactorises_the_shapes_matrix(horse_graph, horse_
     next, values and all; what follows the pose is a coarse matrix under half the size."""
     handles, targets, _ = horse_drag
     deformer = solver.Deformer(horse_graph, handles)
-    two_grid = deformer._hessian
+    two_grid = deformer._preconditioner
     factor = two_grid._smoother._factor
     probe = np.linspace(1.0, 2.0, len(deformer.free))
     before = factor.solve(probe)
@@ -96,7 +97,7 @@ def test_moving_handles_never_refactorises_the_shapes_matrix(horse_graph, horse_
         moved = rest + (targets - rest) * t
         pose = deformer.solve(moved)
         assert pose.converged and np.array_equal(pose.positions[handles], moved)
-        assert 1 <= pose.factorizations <= solver.deformer.LATE_REFRESHES
+        assert 1 <= pose.factorizations <= solver.Options().late_refreshes
         assert two_grid._smoother._factor is factor
         assert np.array_equal(factor.solve(probe), before)
     assert 2 * two_grid._coarse_upper.shape[0] <= 2 * len(deformer.free)  # both stacked [x; y]
@@ -106,10 +107,10 @@ def test_a_graph_too_small_for_a_coarse_copy_is_its_own_coarse_level():
     """A graph with fewer points than two coarse copies would have: the two-grid would cost more
     than the Newton matrix it stands for, so that matrix is used (and still converges)."""
     graph = solver.build_graph([disk(count=24)], spacing=0.3)
-    assert graph.n < 2 * solver.deformer.COARSE_INTERIOR
+    assert graph.n < 2 * solver.Options().coarse_interior
     handles = np.flatnonzero(np.abs(graph.points[:, 0]) > 0.8)
     deformer = solver.Deformer(graph, handles)
-    assert isinstance(deformer._hessian, solver.hessian.Hessian)
+    assert isinstance(deformer._preconditioner, solver.hessian.Hessian)
     targets = graph.points[handles] * [1.3, 1.0]
     pose = deformer.solve(targets)
     assert pose.converged and np.array_equal(pose.positions[handles], targets)
@@ -392,37 +393,31 @@ def test_a_point_in_no_triangle_starts_at_rest_and_stays_finite():
     assert np.all(np.isfinite(pose.positions)) and pose.converged
 
 
-def test_large_graph_path_converges_from_a_coarse_start(horse_graph, horse_drag, monkeypatch):
-    """Above COARSE_START_POINTS the solve starts from the coarse copy's pose and iterates with
+def test_large_graph_path_converges_from_a_coarse_start(horse_graph, horse_drag):
+    """Above Options.coarse_start_points the solve starts from the coarse copy's pose and iterates with
     the two-grid preconditioner on that copy: the fine constant factor is never refactorised,
     only the small coarse one; exercised here on the horse by lowering the threshold."""
-    import solver.deformer
-
     handles, targets, _ = horse_drag
     newton = solver.Deformer(horse_graph, handles, newton=True).solve(
         targets, tolerance=1e-8, max_iterations=200)
-    monkeypatch.setattr(solver.deformer, "COARSE_START_POINTS", 10)
-    deformer = solver.Deformer(horse_graph, handles)
-    fine_factor = deformer._hessian._smoother._factor
+    deformer = solver.Deformer(horse_graph, handles, options=solver.Options(coarse_start_points=10))
+    fine_factor = deformer._preconditioner._smoother._factor
     for t in (0.5, 1.0):
         rest = horse_graph.points[handles]
         pose = deformer.solve(rest + (targets - rest) * t)
-        assert deformer._hessian._smoother._factor is fine_factor
+        assert deformer._preconditioner._smoother._factor is fine_factor
         assert np.array_equal(pose.positions[handles], rest + (targets - rest) * t)
         assert np.all(np.diff(pose.energies) <= 0.0)
-    assert 1 <= pose.factorizations <= solver.deformer.LATE_REFRESHES
+    assert 1 <= pose.factorizations <= solver.Options().late_refreshes
     assert np.abs(pose.positions - newton.positions).max() <= 1e-3 * horse_graph.size
 
 
-def test_very_large_graphs_keep_the_papers_factor(horse_graph, horse_drag, monkeypatch):
-    """Above TWO_GRID_MAX_POINTS the default iterates the paper's matrix alone from the coarse
-    copy's pose: no refactorisation at all (exercised by lowering both thresholds)."""
-    import solver.deformer
-
+def test_very_large_graphs_keep_the_papers_factor(horse_graph, horse_drag):
+    """Above Options.two_grid_max_points the default iterates the paper's matrix alone from the
+    coarse copy's pose: no refactorisation at all (exercised by lowering both thresholds)."""
     handles, targets, _ = horse_drag
-    monkeypatch.setattr(solver.deformer, "COARSE_START_POINTS", 10)
-    monkeypatch.setattr(solver.deformer, "TWO_GRID_MAX_POINTS", 20)
-    pose = solver.Deformer(horse_graph, handles).solve(targets)
+    options = solver.Options(coarse_start_points=10, two_grid_max_points=20)
+    pose = solver.Deformer(horse_graph, handles, options=options).solve(targets)
     assert pose.factorizations == 0
     assert np.array_equal(pose.positions[handles], targets)
     assert np.all(np.diff(pose.energies) <= 0.0)
@@ -430,10 +425,10 @@ def test_very_large_graphs_keep_the_papers_factor(horse_graph, horse_drag, monke
 
 @pytest.fixture(scope="module")
 def fine_horse(horse_rings):
-    """The horse at about 6,000 graph points, above COARSE_START_POINTS; the region around its
+    """The horse at about 6,000 graph points, above Options.coarse_start_points; the region around its
     lowest point pinned, the region around its highest point dragged by a third of its size."""
     graph = solver.build_graph(horse_rings, spacing=3.0)
-    assert graph.n > solver.deformer.COARSE_START_POINTS
+    assert graph.n > solver.Options().coarse_start_points
     points, size = graph.points, graph.size
     pinned = region(points, points[np.argmin(points[:, 1])], 0.06 * size)
     dragged = region(points, points[np.argmax(points[:, 1])], 0.06 * size)
@@ -453,11 +448,11 @@ def test_large_graph_is_converged_within_15_iterations(fine_horse):
     converged = solver.Deformer(graph, handles, newton=True).solve(
         targets, max_iterations=300, tolerance=1e-9, initial=start)
     assert converged.converged
-    fine_factor = deformer._hessian._smoother._factor
+    fine_factor = deformer._preconditioner._smoother._factor
     pose = deformer.solve(targets, max_iterations=15)
     assert np.abs(pose.positions - converged.positions).max() <= 1e-3 * graph.size
     assert np.all(np.diff(pose.energies) <= 0.0)
-    assert deformer._hessian._smoother._factor is fine_factor
+    assert deformer._preconditioner._smoother._factor is fine_factor
     paper = solver.Deformer(graph, handles, newton=False).solve(targets, max_iterations=15)
     assert np.abs(paper.positions - converged.positions).max() > 2e-3 * graph.size
 
@@ -494,11 +489,11 @@ def test_large_graph_keeps_its_area_and_opens_its_folds(fine_horse):
 def test_paper_matrix_mode_never_refactorises(horse_graph, horse_drag):
     handles, targets, _ = horse_drag
     deformer = solver.Deformer(horse_graph, handles, newton=False)
-    factor = deformer._hessian._factor
+    factor = deformer._preconditioner._factor
     for t in (0.3, 0.6, 1.0):
         rest = horse_graph.points[handles]
         pose = deformer.solve(rest + (targets - rest) * t)
-        assert pose.factorizations == 0 and deformer._hessian._factor is factor
+        assert pose.factorizations == 0 and deformer._preconditioner._factor is factor
         assert np.array_equal(pose.positions[handles], rest + (targets - rest) * t)
 
 
@@ -544,13 +539,17 @@ def test_fold_penalty_of_a_sliver_is_no_stiffer_than_of_a_fair_triangle():
     points = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1e-4], [0.5, -0.8]])
     graph = solver.Graph(points, [[0, 1], [1, 2], [2, 0], [0, 3], [3, 1]], [[0, 3, 1, 2]],
                          triangles=[[0, 1, 2], [0, 3, 1]])
-    penalty = FoldPenalty(graph, np.arange(4), np.array([], dtype=np.int64))
+    options = solver.Options()
+    every_point_free = Unknowns(graph, np.array([0]))
+    every_point_free.free, every_point_free.fixed = np.arange(4), np.array([], dtype=np.int64)
+    penalty = FoldPenalty(graph, every_point_free, options.fold_threshold, options.fold_weight,
+                          options.sliver_area)
     squeezed = points.copy()
     squeezed[[2, 3], 1] = [-1e-4, -1e-4]  # both triangles turned inside out by a hair
     coefficient, u = penalty.terms(squeezed.T.ravel())
     stiffness = -coefficient * np.einsum("tk,tk->t", u, u)  # curvature along the area gradient
     longest = 1.0
-    assert stiffness[0] <= FOLD_WEIGHT / (SLIVER_AREA * longest ** 2) * np.dot(u[0], u[0]) * (1 + 1e-12)
+    assert stiffness[0] <= options.fold_weight / (options.sliver_area * longest ** 2) * np.dot(u[0], u[0]) * (1 + 1e-12)
     assert stiffness[0] < 10.0 * stiffness[1]
 
 
@@ -622,8 +621,10 @@ def test_fold_penalty_gradient_matches_finite_differences():
     graph, handles, targets = _turned_b()
     deformer = solver.Deformer(graph, handles)
     folded = deformer.solve(targets).positions
-    free, fixed = deformer.free, np.setdiff1d(np.arange(graph.n), deformer.free)
-    penalty = FoldPenalty(graph, free, fixed)
+    free, fixed = deformer.free, deformer.unknowns.fixed
+    options = solver.Options()
+    penalty = FoldPenalty(graph, deformer.unknowns, options.fold_threshold, options.fold_weight,
+                          options.sliver_area)
     penalty.hold(folded[fixed])
     v = folded[free].T.ravel()
     energy, half_gradient = penalty.evaluate(v)
@@ -638,18 +639,21 @@ def test_fold_penalty_gradient_matches_finite_differences():
 
 def test_a_rebuilt_deformer_reuses_the_coarse_copy_of_an_equal_graph(horse_graph, horse_drag):
     """Changing handles or weights rebuilds the Deformer, often on a new but equal Graph (the
-    add-on rebuilds its graph from stored data): the coarse copy is kept, the pose unchanged."""
-    from solver.deformer import COARSE_INTERIOR, _coarse_copy
-
+    add-on rebuilds its graph from stored data): with the caller's CoarseCopies passed along, the
+    coarse copy is built once, and the pose is the same as with a fresh one."""
+    options = solver.Options()
+    copies = solver.CoarseCopies()
     handles, targets, _ = horse_drag
-    first = solver.Deformer(horse_graph, handles).solve(targets).positions
+    first = solver.Deformer(horse_graph, handles, coarse_copies=copies).solve(targets).positions
     again = solver.Graph(horse_graph.points.copy(), horse_graph.edges, horse_graph.boundary_loops,
                          horse_graph.triangles)
-    solver.Deformer(again, handles[:-3], weights={"edge": 2.0})
-    copy = _coarse_copy(horse_graph, COARSE_INTERIOR)
-    assert _coarse_copy(again, COARSE_INTERIOR) is copy
+    solver.Deformer(again, handles[:-3], weights={"edge": 2.0}, coarse_copies=copies)
+    copy = copies.get(horse_graph, options.coarse_interior, options.coarse_detail)
+    assert copy is not None
+    assert copies.get(again, options.coarse_interior, options.coarse_detail) is copy
     moved = again.points.copy()
     moved[0] += 1.0
     other = solver.Graph(moved, again.edges, again.boundary_loops, again.triangles)
-    assert _coarse_copy(other, COARSE_INTERIOR) is not copy
+    assert copies.get(other, options.coarse_interior, options.coarse_detail) is not copy
+    assert np.array_equal(solver.Deformer(again, handles, coarse_copies=copies).solve(targets).positions, first)
     assert np.array_equal(solver.Deformer(again, handles).solve(targets).positions, first)

@@ -14,21 +14,22 @@ def _stretched(prevent_flips):
     deformer = solver.Deformer(graph, handles, prevent_flips=prevent_flips, newton=True)
     rng = np.random.default_rng(7)
     pose = 1.5 * graph.points + 1e-3 * graph.size * rng.normal(size=graph.points.shape)
-    fixed_rows = (deformer._fixed_columns @ pose[deformer._fixed]).T.ravel()
+    fixed_rows = (deformer._fixed_columns @ pose[deformer.unknowns.fixed]).T.ravel()
+    deformer._fixed_rows = fixed_rows  # what solve() holds for evaluate()
     return graph, deformer, pose, fixed_rows, rng
 
 
 def test_newton_matrix_matches_finite_differences_of_the_gradient():
     graph, deformer, pose, fixed_rows, rng = _stretched(prevent_flips=False)
     v = pose[deformer.free].T.ravel()
-    rows = deformer._evaluate(v, fixed_rows)[2][0]
-    upper = deformer._hessian.matrix(rows).toarray()
+    rows = deformer.evaluate(v)[2][0]
+    upper = deformer._preconditioner.matrix(rows).toarray()
     newton = upper + np.triu(upper, 1).T  # the halved Hessian, as the gradient is halved
     step = 1e-6 * graph.size
     for _ in range(4):
         direction = rng.normal(size=v.shape)
-        ahead = deformer._evaluate(v + step * direction, fixed_rows)[1]
-        behind = deformer._evaluate(v - step * direction, fixed_rows)[1]
+        ahead = deformer.evaluate(v + step * direction)[1]
+        behind = deformer.evaluate(v - step * direction)[1]
         exact = newton @ direction
         assert np.abs((ahead - behind) / (2 * step) - exact).max() <= 1e-6 * np.abs(exact).max()
 
@@ -36,20 +37,20 @@ def test_newton_matrix_matches_finite_differences_of_the_gradient():
 def test_fold_terms_add_the_penalty_gauss_newton_matrix():
     """With a triangle squeezed below the fold threshold, the Newton matrix gains exactly
     ``scale * grad(area) grad(area)^T`` for it (the penalty's Gauss-Newton part, halved)."""
-    from solver.folds import FOLD_WEIGHT
+    FOLD_WEIGHT = solver.Options().fold_weight
 
     graph, deformer, pose, _, _ = _stretched(prevent_flips=True)
     inner = graph.triangles[np.isin(graph.triangles, deformer.free).all(axis=1)][0]
     a, b, c = inner
     pose[c] = pose[a] + 0.02 * (pose[c] - pose[a]) + 0.5 * (pose[b] - pose[a])
     folds = deformer._folds
-    folds.hold(pose[deformer._fixed])
+    folds.hold(pose[deformer.unknowns.fixed])
     v = pose[deformer.free].T.ravel()
-    fixed_rows = (deformer._fixed_columns @ pose[deformer._fixed]).T.ravel()
-    rows = deformer._evaluate(v, fixed_rows)[2][0]
+    deformer._fixed_rows = (deformer._fixed_columns @ pose[deformer.unknowns.fixed]).T.ravel()
+    rows = deformer.evaluate(v)[2][0]
     terms = folds.terms(v)
     assert terms is not None and np.count_nonzero(terms[0]) >= 1
-    added = deformer._hessian.matrix(rows, terms).toarray() - deformer._hessian.matrix(rows, None).toarray()
+    added = deformer._preconditioner.matrix(rows, terms).toarray() - deformer._preconditioner.matrix(rows, None).toarray()
     expected = np.zeros_like(added)
     step = 1e-7 * graph.size
     rest_area = 0.5 * solver.triangulate.triangle_cross(graph.points, graph.triangles)
@@ -71,7 +72,7 @@ def test_two_grid_cycle_gives_descent_directions_and_its_coarse_matrix_is_galerk
     graph = solver.build_graph(glyph_rings("B"))
     handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
     deformer = solver.Deformer(graph, handles)
-    two_grid = deformer._hessian
+    two_grid = deformer._preconditioner
     pose = graph.points @ np.array([[0.8, -0.6], [0.6, 0.8]]).T * 1.2  # turned and stretched
     rows = np.ascontiguousarray((deformer.energy.matrix @ pose).T)
     two_grid.factorize(rows)
@@ -95,7 +96,7 @@ def test_two_grid_takes_fold_terms_into_its_smoother_without_refactorising():
     graph = solver.build_graph(glyph_rings("B"))
     handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
     deformer = solver.Deformer(graph, handles, prevent_flips=True)
-    two_grid = deformer._hessian
+    two_grid = deformer._preconditioner
     factor = two_grid._smoother._factor
     rows = np.ascontiguousarray((deformer.energy.matrix @ graph.points).T)
     inner = np.flatnonzero(np.isin(graph.triangles, deformer.free).all(axis=1))[:5]

@@ -1,0 +1,188 @@
+"""How the energy is minimised: L-BFGS over a preconditioner, with a backtracking line search.
+
+The preconditioner (:mod:`solver.preconditioner`) is L-BFGS's initial inverse Hessian; the
+curvature pairs it keeps add what the preconditioner misses. Every accepted step lowers the
+energy (Armijo). The preconditioner is refreshed at the current pose, which clears the pairs,
+on the schedule that :class:`~solver.options.Options` sets: while steps are large early on,
+and every few iterations in a solve still taking large steps late.
+
+With the area constraint (:mod:`solver.area`) every step is projected onto the constraint's
+tangent in the preconditioner's metric, the curvature pairs use the Lagrangian's gradient, and
+each trial point is moved back onto the constraint exactly before its energy is measured.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .area import multiplier, tangent
+
+__all__ = ["Result", "minimise"]
+
+
+@dataclass
+class Result:
+    """What :func:`minimise` reached.
+
+    Attributes
+    ----------
+    v : (2 f,) float64 ndarray
+        The free coordinates, stacked ``[x; y]``.
+    iterations : int
+    energies : list of float
+        Energy after each iteration (never increasing).
+    converged : bool
+    refreshes : int
+        Refreshes of the preconditioner, the one before the first iteration included.
+    """
+
+    v: np.ndarray
+    iterations: int = 0
+    energies: list = field(default_factory=list)
+    converged: bool = False
+    refreshes: int = 0
+
+
+def minimise(objective, preconditioner, v, options, size, max_iterations, tolerance, area=None):
+    """Minimise ``objective`` over the stacked free coordinates, starting from ``v``.
+
+    Parameters
+    ----------
+    objective : object
+        ``evaluate(v) -> (energy, half_gradient (2 f,), pose)`` and ``refresh(v, pose)``, which
+        refactors ``preconditioner`` at that pose.
+    preconditioner : solver.preconditioner.Preconditioner
+    v : (2 f,) float64 ndarray
+        The start, modified in place by the area projection.
+    options : solver.Options
+    size : float
+        The shape's size: tolerances and refresh thresholds are fractions of it.
+    max_iterations : int
+    tolerance : float
+        Stop once the next step would move no coordinate more than ``tolerance * size``;
+        ``0.0`` runs every iteration.
+    area : solver.area.AreaConstraint, optional
+        Holding the fixed points of this solve (:meth:`~solver.area.AreaConstraint.hold`).
+
+    Returns
+    -------
+    Result
+
+    Raises
+    ------
+    ValueError
+        With ``area``: no pose with the rest area found near the start.
+    """
+    step_limit = tolerance * size
+    limit = 0 if not preconditioner.follows_pose else (
+        options.refreshes if area is None else options.refreshes_with_area)
+    result = Result(v)
+    direction = jacobian = None
+    if area is not None:
+        objective.refresh(v, None)
+        if not area.project(v, preconditioner.solve):
+            raise ValueError(f"preserve_area: found no pose with the rest area near the start for these "
+                             f"targets (the nearest was {area.area(v) / area.rest - 1.0:.2g} off it)")
+        jacobian = area.jacobian(v)  # kept with direction: both change only with v
+        direction = preconditioner.solve(jacobian)
+    energy, gradient, pose = objective.evaluate(v)  # gradient: half the true one
+    if area is None:
+        objective.refresh(v, pose)
+    result.refreshes = 1 if limit else 0
+    last_refresh = 0
+    fresh = False
+    history = deque(maxlen=options.history)
+    for _ in range(max_iterations):
+        search_gradient = gradient
+        if area is not None:
+            # Along the constraint the energy's curvature is the Lagrangian's.
+            search_gradient = gradient - multiplier(gradient, jacobian, direction) * jacobian
+        step = -_two_loop(preconditioner, search_gradient, history)
+        if area is not None:
+            step = tangent(step, jacobian, direction)
+        slope = 2.0 * float(gradient @ step)
+        if slope >= 0.0 and history:
+            history.clear()
+            step = -preconditioner.solve(search_gradient)
+            if area is not None:
+                step = tangent(step, jacobian, direction)
+            slope = 2.0 * float(gradient @ step)
+        # Converged when the proposed step moves no point more than the tolerance: the pose is
+        # then that close to the minimum the model sees. (A step the line search shortened
+        # would say nothing of the kind; checking before the search also saves an evaluation.)
+        if tolerance > 0.0 and not fresh and float(np.abs(step).max()) <= step_limit:
+            result.converged = True
+            break
+        moved = _line_search(objective, options, v, energy, step, slope, area, direction)
+        result.iterations += 1
+        if moved is None:  # no decrease is possible: a minimum to rounding
+            result.energies.append(energy)
+            if tolerance > 0.0:
+                result.converged = True
+                break
+            continue
+        new_v, new_energy, new_gradient, pose = moved
+        s = new_v - v
+        largest = float(np.abs(s).max())
+        result.energies.append(new_energy)
+        early = result.refreshes < limit and largest > options.refresh_until * size
+        late = (limit > 0 and area is None and result.refreshes < options.late_refreshes
+                and result.iterations >= options.late_refresh_from
+                and result.iterations - last_refresh >= options.late_refresh_every
+                and largest > options.late_until * size)
+        # The first step after a late refresh is the bare preconditioner's, short in a flat
+        # valley however far the minimum: it says nothing of convergence.
+        fresh = late and not early
+        if early or late:
+            objective.refresh(new_v, pose)
+            result.refreshes += 1
+            last_refresh = result.iterations
+            history.clear()
+        if area is not None:
+            new_jacobian = area.jacobian(new_v)
+            new_direction = preconditioner.solve(new_jacobian)
+        if not (early or late):
+            y = new_gradient - gradient
+            if area is not None:
+                y -= multiplier(new_gradient, new_jacobian, new_direction) * (new_jacobian - jacobian)
+            sy = float(s @ y)
+            if sy > 1e-12 * np.sqrt(float(s @ s) * float(y @ y)):
+                history.append((s, y, 1.0 / sy))
+        v, energy, gradient = new_v, new_energy, new_gradient
+        if area is not None:
+            direction, jacobian = new_direction, new_jacobian
+    result.v = v
+    return result
+
+
+def _two_loop(preconditioner, gradient, history):
+    """L-BFGS inverse-Hessian product with the preconditioner as the initial inverse Hessian."""
+    q = gradient.copy()
+    coefficients = []
+    for s, y, rho in reversed(history):
+        a = rho * float(s @ q)
+        q -= a * y
+        coefficients.append(a)
+    z = preconditioner.solve(q)
+    for (s, y, rho), a in zip(history, reversed(coefficients)):
+        z += (a - rho * float(y @ z)) * s
+    return z
+
+
+def _line_search(objective, options, v, energy, step, slope, area, direction):
+    """Backtrack from the full step until the energy decreases enough (Armijo); None if no
+    halving does."""
+    if slope >= 0.0:
+        return None
+    alpha = 1.0
+    for _ in range(options.max_halvings):
+        trial = v + alpha * step
+        if area is None or area.restore(trial, direction):
+            trial_energy, gradient, pose = objective.evaluate(trial)
+            if trial_energy <= energy + options.armijo * alpha * slope:
+                return trial, trial_energy, gradient, pose
+        alpha *= 0.5
+    return None

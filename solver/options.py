@@ -1,0 +1,103 @@
+"""Every knob of a solve, in one place: :class:`Options`.
+
+The defaults are what the measurements in ``docs/solver_options.md`` chose, with the commands
+that repeat them; a caller who wants other trade-offs passes its own ``Options`` to
+:class:`solver.Deformer`. Knobs of the energy itself (the three term weights, the area
+constraint, the fold penalty switch) stay arguments of the Deformer: they change what is
+minimised, these change how.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+__all__ = ["Options"]
+
+
+@dataclass(frozen=True)
+class Options:
+    """How :class:`solver.Deformer` builds its solver and runs a solve.
+
+    Attributes
+    ----------
+    max_iterations : int
+        Iterations per solve unless :meth:`~solver.Deformer.solve` is given others.
+    tolerance : float
+        Stop once the next step would move no point more than this fraction of the shape's
+        size (``0.0`` runs every iteration).
+    history : int
+        Curvature pairs L-BFGS keeps.
+    armijo : float
+        Sufficient-decrease constant of the backtracking line search.
+    max_halvings : int
+        Step halvings the line search tries before it calls the pose a minimum to rounding.
+    refreshes : int
+        Refreshes of the pose-dependent matrix (the two-grid's coarse Newton matrix, or the
+        whole Newton matrix with ``newton=True``) at most per solve, made while steps exceed
+        ``refresh_until`` times the size; L-BFGS reuses the last one afterwards.
+    refresh_until : float
+        See ``refreshes``.
+    refreshes_with_area : int
+        ``refreshes`` for solves with the area constraint, whose curvature the Newton matrix
+        leaves out.
+    late_refresh_from, late_refresh_every, late_refreshes, late_until : int, int, int, float
+        A solve still running at iteration ``late_refresh_from`` with steps above
+        ``late_until`` times the size refreshes every ``late_refresh_every`` iterations, up to
+        ``late_refreshes`` refreshes in all (not with the area constraint).
+    coarse_start_points : int
+        Above this many graph points a solve starts from the pose of a coarse copy of the
+        shape instead of the as-similar-as-possible pose.
+    coarse_interior : int
+        Interior points of the two-grid's coarse copy below ``coarse_start_points``.
+    coarse_detail : float
+        Outline detail that coarse copy keeps, in units of its spacing.
+    coarse_ratio : float
+        A graph whose coarse copy would not be this many times smaller is its own coarse
+        level (the whole Newton matrix).
+    two_grid_max_points : int
+        Above this many points the paper's matrix alone is iterated (a coarse copy of a few
+        hundred points is then too coarse to help).
+    max_fold_terms : int
+        Fold-penalty terms (the stiffest squeezed triangles) the two-grid's smoother takes
+        in, each one back-substitution per refresh.
+    fold_threshold : float
+        With ``prevent_flips``: triangles squeezed below this fraction of their rest area are
+        pushed back open.
+    fold_weight : float
+        The fold penalty's weight relative to the paper's terms.
+    sliver_area : float
+        Area per squared longest edge below which a triangle counts as a sliver, whose fold
+        stiffness is bounded.
+    """
+
+    max_iterations: int = 30
+    tolerance: float = 1e-4
+    history: int = 16
+    armijo: float = 1e-4
+    max_halvings: int = 30
+    refreshes: int = 4
+    refresh_until: float = 1e-2
+    refreshes_with_area: int = 12
+    late_refresh_from: int = 10
+    late_refresh_every: int = 3
+    late_refreshes: int = 12
+    late_until: float = 1e-3
+    coarse_start_points: int = 3000
+    coarse_interior: int = 60
+    coarse_detail: float = 0.005
+    coarse_ratio: float = 2.0
+    two_grid_max_points: int = 10000
+    max_fold_terms: int = 32
+    fold_threshold: float = 0.1
+    fold_weight: float = 100.0
+    sliver_area: float = 0.05
+
+    def __post_init__(self):
+        for item in fields(self):
+            value = getattr(self, item.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"Options.{item.name} must be a number, got {value!r}")
+            if item.type == "int" and int(value) != value:
+                raise ValueError(f"Options.{item.name} must be a whole number, got {value!r}")
+            if not value >= 0 or value == float("inf"):
+                raise ValueError(f"Options.{item.name} must be finite and >= 0, got {value!r}")

@@ -1,0 +1,66 @@
+"""The matrices a solve preconditions with, behind one protocol, and the choice among them.
+
+Every preconditioner stands for the energy's Hessian on the stacked free coordinates
+``[x; y]``; L-BFGS (:mod:`solver.optimizer`) uses it as its initial inverse Hessian.
+
+- :class:`~solver.hessian.Hessian`: the projected Newton matrix of the whole graph, one
+  numeric refactorisation per refresh (``newton=True``, and graphs too small for a coarser
+  copy).
+- :class:`~solver.two_grid.TwoGrid`: the paper's constant matrix, factorised once, plus a
+  Newton correction on a coarse copy of the shape (the default up to
+  ``Options.two_grid_max_points``).
+- :class:`~solver.hessian.PaperMatrix`: the paper's constant matrix alone (``newton=False``,
+  and larger graphs).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+from .hessian import Hessian, PaperMatrix
+from .two_grid import TwoGrid
+
+__all__ = ["Preconditioner", "choose"]
+
+
+class Preconditioner(Protocol):
+    """What the optimiser needs of a preconditioner."""
+
+    #: Whether :meth:`factorize` depends on the pose (False: the optimiser never refreshes it).
+    follows_pose: bool
+
+    def factorize(self, rows, fold_terms=None, fit=None):
+        """Refresh at the pose with ``A V = rows`` ((2, r)); ``fold_terms`` from
+        :meth:`solver.folds.FoldPenalty.terms` and ``fit`` from :meth:`solver.energy.Energy.fit`
+        at the same pose, when known."""
+
+    def solve(self, rhs):
+        """Apply the approximate inverse Hessian to ``rhs`` ((2 f,)); returns (2 f,)."""
+
+
+def choose(energy, free, triangles, newton, options, coarse):
+    """The preconditioner for a deformer.
+
+    Parameters
+    ----------
+    energy : solver.energy.Energy
+    free : (f,) int ndarray
+    triangles : (t, 3) int ndarray or None
+        The graph's triangles with the fold penalty, else None.
+    newton : bool or None
+        As :class:`solver.Deformer` takes it.
+    options : solver.Options
+    coarse : tuple or None
+        ``(coarse graph, binding of the fine points to it)`` for a two-grid, or None when the
+        solve has no coarse copy (``newton`` is set, or the shape has no copy
+        ``options.coarse_ratio`` times smaller).
+
+    Returns
+    -------
+    Preconditioner
+    """
+    if newton or (newton is None and coarse is None):
+        return Hessian(energy, free, triangles)
+    if newton is None and energy.n <= options.two_grid_max_points:
+        return TwoGrid(energy, free, coarse[1].weights[free], triangles, options.max_fold_terms)
+    return PaperMatrix(energy, free)

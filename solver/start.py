@@ -1,0 +1,157 @@
+"""Where a solve starts: a pose that depends on the handles' targets alone.
+
+- :class:`SimilarityStart`: the as-similar-as-possible pose (one linear solve, factorised once
+  per handle set) that turns free limbs with what they hang from.
+- :class:`CoarseStart`: for large graphs, the converged pose of a coarse copy of the shape,
+  carried to the fine points by its binding, so a dense graph poses like a sparse one.
+
+Coarse copies depend on the graph alone while a deformer is rebuilt for every change of handles
+or weights, so they are kept in a :class:`CoarseCopies` that the caller owns and may pass from
+one deformer to the next (the add-on's rig cache does).
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import qdldl
+from scipy.sparse import identity, triu
+from scipy.spatial import cKDTree
+
+from .binding import bind
+from .energy import similarity_rows
+from .graph import build_graph
+from .outline import outline_graph
+from .shapes import box_centre
+
+__all__ = ["CoarseCopies", "CoarseStart", "SimilarityStart"]
+
+
+class SimilarityStart:
+    """The as-similar-as-possible pose for given fixed points (see
+    :func:`solver.energy.similarity_rows`).
+
+    Parameters
+    ----------
+    graph : solver.Graph
+    unknowns : solver.unknowns.Unknowns
+    """
+
+    def __init__(self, graph, unknowns):
+        n = graph.n
+        free = unknowns.free
+        self._free = free
+        similarity = similarity_rows(graph.points, graph.triangles).tocsc()
+        stacked_free = np.concatenate([free, n + free])
+        self._stacked_fixed = np.concatenate([unknowns.fixed, n + unknowns.fixed])
+        similarity_free = similarity[:, stacked_free]
+        self._similarity_fixed = similarity[:, self._stacked_fixed].tocsr()
+        self._similarity_free_transpose = similarity_free.T.tocsr()
+        normal = (self._similarity_free_transpose @ similarity_free).tocsc()
+        # Free points touching no triangle would make this singular; a tiny pull towards their
+        # rest positions keeps them there and changes nothing else measurably.
+        diagonal = normal.diagonal()
+        tiny = 1e-12 * (float(diagonal.max()) if len(diagonal) else 1.0)
+        normal = normal + tiny * identity(normal.shape[0], format="csc")
+        # Solved about the rest shape's centre: the pull is what settles turns and scales the
+        # handles leave open (a single handle point), and far from the origin its rounding
+        # turned a shape 1e6 times smaller than its offset by more than its size.
+        self._origin = box_centre(graph.points)
+        self._rest_pull = tiny * (graph.points[free] - self._origin).T.ravel()
+        self._factor = qdldl.Solver(triu(normal, format="csc"), upper=True)
+
+    def pose(self, positions):
+        """``positions`` (n, 2) with the free points moved to the as-similar-as-possible pose
+        for the fixed ones (a new array)."""
+        origin = self._origin
+        stacked = np.concatenate([positions[:, 0] - origin[0], positions[:, 1] - origin[1]])
+        rhs = self._rest_pull - self._similarity_free_transpose @ (
+            self._similarity_fixed @ stacked[self._stacked_fixed])
+        free = self._factor.solve(rhs)
+        k = len(self._free)
+        positions = positions.copy()
+        positions[self._free, 0] = free[:k] + origin[0]
+        positions[self._free, 1] = free[k:] + origin[1]
+        return positions
+
+
+class CoarseCopies:
+    """Coarse copies of shapes, kept for reuse between deformers of the same graph.
+
+    Keyed by the graph's points and loops, so a copy is never used for another shape; the
+    ``kept`` most recent are kept.
+    """
+
+    def __init__(self, kept=8):
+        self._kept = int(kept)
+        self._copies = {}
+
+    def get(self, graph, interior=None, detail=None):
+        """A coarse copy of ``graph``'s shape and the binding of ``graph``'s points to it.
+
+        Parameters
+        ----------
+        graph : solver.Graph
+        interior : int, optional
+            About this many interior points (:func:`~solver.outline.outline_graph`, outline kept
+            to ``detail`` times its spacing); None if the outline will not make one. Without it,
+            the default spacing (:func:`~solver.graph.build_graph`).
+        detail : float, optional
+
+        Returns
+        -------
+        (solver.Graph, solver.Binding) or None
+        """
+        loops = graph.boundary_loops
+        digest = hashlib.blake2b(graph.points.tobytes(), digest_size=16)
+        digest.update(np.array([len(loop) for loop in loops], dtype=np.int64).tobytes())
+        digest.update(np.concatenate(loops).astype(np.int64).tobytes())
+        key = (digest.digest(), interior, detail)
+        if key not in self._copies:
+            rings = [graph.points[loop] for loop in loops]
+            if interior is None:
+                coarse = build_graph(rings)
+            else:
+                try:
+                    coarse = outline_graph(rings, interior, detail)
+                except ValueError:  # an outline the coarse copy cannot be built from
+                    coarse = None
+            while self._copies and len(self._copies) >= self._kept:
+                del self._copies[next(iter(self._copies))]
+            self._copies[key] = None if coarse is None else (coarse, bind(coarse, graph.points))
+        return self._copies[key]
+
+
+class CoarseStart:
+    """The pose of a coarse copy of the shape, carried to a large graph's points.
+
+    A graph of a few hundred points built from the same boundary solves with Newton steps in
+    milliseconds and gets the turns of whole limbs right; the fine iterations then fix local
+    detail. Starting there also keeps a dense graph's pose close to the coarse one's: from the
+    as-similar-as-possible start, a 9,000-point horse turning its head settled in a minimum
+    with 9% more energy, 3% of its size away from the coarse pose.
+
+    Parameters
+    ----------
+    graph : solver.Graph
+    handles : (h,) int ndarray
+    make_deformer : callable
+        ``make_deformer(coarse_graph, coarse_handles)``: the deformer that solves the copy.
+    copies : CoarseCopies
+    """
+
+    def __init__(self, graph, handles, make_deformer, copies):
+        self.copy = copies.get(graph)  # the default spacing: a few hundred points
+        coarse, self.binding = self.copy
+        rest = graph.points[handles]
+        # Each coarse point nearest a handle point follows that handle point's target.
+        _, nearest = cKDTree(coarse.points).query(rest)
+        coarse_handles, self._first = np.unique(nearest, return_index=True)
+        self._offset = coarse.points[coarse_handles] - rest[self._first]
+        self.deformer = make_deformer(coarse, coarse_handles)
+
+    def pose(self, targets):
+        """Fine graph positions (n, 2) for the handles' ``targets`` (h, 2)."""
+        coarse = self.deformer.solve(targets[self._first] + self._offset)
+        return self.binding.apply(coarse.positions)

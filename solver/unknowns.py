@@ -1,0 +1,66 @@
+"""Which graph points a solve moves, and the split of every linear map into free and fixed parts.
+
+Handles are hard constraints, and a connected part of the graph with no handle stays at rest;
+both are *fixed*, the rest are *free*. A solve iterates on the free points' coordinates stacked
+``v = [x; y]`` (length ``2 f``). Every term that is linear in the positions (the paper's rows
+``A``, the fold penalty's triangle edges) splits the same way: ``M V = M_c c + [M_f 0; 0 M_f] v``
+with ``M V`` kept coordinate-major. :meth:`Unknowns.split` makes that split, once for all of them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import block_diag
+
+__all__ = ["Unknowns"]
+
+
+class Unknowns:
+    """The free and fixed points of a graph under a set of handles.
+
+    Parameters
+    ----------
+    graph : solver.Graph
+    handles : (h,) int ndarray
+        Graph points moved to targets (validated by the caller).
+
+    Attributes
+    ----------
+    free : (f,) int64 ndarray
+        Points the solve moves.
+    fixed : (c,) int64 ndarray
+        Handles and the points of islands without handles.
+    resting : (n,) bool ndarray
+        Points of islands without handles: they stay at rest.
+    """
+
+    def __init__(self, graph, handles):
+        fixed = np.zeros(graph.n, dtype=bool)
+        fixed[handles] = True
+        labels = graph.components()
+        anchored = np.zeros(labels.max() + 1, dtype=bool)
+        anchored[labels[handles]] = True
+        self.resting = ~anchored[labels]
+        fixed |= self.resting
+        self.free = np.flatnonzero(~fixed)
+        self.fixed = np.flatnonzero(fixed)
+
+    def split(self, matrix):
+        """Split a linear map of the positions into its action on ``v`` and on the fixed points.
+
+        Parameters
+        ----------
+        matrix : (r, n) scipy.sparse matrix
+
+        Returns
+        -------
+        free_block : (2 r, 2 f) scipy.sparse.csr_matrix
+            ``[M_f 0; 0 M_f]``: rows of x then rows of y from ``v``.
+        free_block_transpose : (2 f, 2 r) scipy.sparse.csr_matrix
+        fixed_columns : (r, c) scipy.sparse.csr_matrix
+            ``M_c``, applied to the fixed points' ``(c, 2)`` positions.
+        """
+        matrix = matrix.tocsc()
+        free_columns = matrix[:, self.free]
+        free_block = block_diag([free_columns, free_columns], format="csr")
+        return free_block, free_block.T.tocsr(), matrix[:, self.fixed].tocsr()
