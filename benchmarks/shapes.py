@@ -52,6 +52,90 @@ def glyph(text="B", size=10.0):
     return [np.asarray(p[:-1], dtype=float) for p in path.to_polygons(closed_only=True)]
 
 
+def star(points=5, inner=0.42):
+    """A regular star: ``points`` tips on the unit circle, notches at radius ``inner``."""
+    angle = np.pi / 2 + np.arange(2 * points) * np.pi / points
+    radius = np.where(np.arange(2 * points) % 2 == 0, 1.0, inner)
+    return [np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=1)]
+
+
+def stick_figure(width=0.07):
+    """A round head on limbs so thin (``width`` ~ 0.04 of the size) that they get no lattice
+    point inside: only boundary points carry the arms and legs."""
+    lines = [[(0, 1.4), (0, 0.5)],
+             [(-0.75, 0.9), (-0.35, 1.15), (0, 1.2), (0.35, 1.15), (0.8, 1.4)],
+             [(-0.45, -0.45), (-0.2, 0.05), (0, 0.5), (0.25, 0.05), (0.4, -0.45)]]
+    parts = [shapely.Point(0, 1.65).buffer(0.28)] + [shapely.LineString(line).buffer(width) for line in lines]
+    return _rings(shapely.union_all(parts))
+
+
+def _tapered(path, width):
+    """A band of half-width ``width[i]`` about ``path[i]``, (k, 2) and (k,)."""
+    tangent = np.gradient(path, axis=0)
+    tangent /= np.linalg.norm(tangent, axis=1)[:, None]
+    normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1) * width[:, None]
+    return shapely.Polygon(np.concatenate([path + normal, (path - normal)[::-1]])).buffer(0)
+
+
+def octopus(arms=6):
+    """An oval body with ``arms`` long wavy arms tapering to thin tips."""
+    body = shapely.affinity.scale(shapely.Point(0, 0.55).buffer(0.6), 1.0, 1.25)
+    t = np.linspace(0, 1, 40)[:, None]
+    limbs = []
+    for k in range(arms):
+        angle = np.radians(-160 + 140 * k / (arms - 1))
+        out = np.array([np.cos(angle), np.sin(angle)])
+        side = np.array([-out[1], out[0]])
+        path = (0.3 + 1.7 * t) * out + 0.25 * np.sin(2.5 * np.pi * t + k) * t * side
+        limbs.append(_tapered(path, 0.11 - 0.07 * t[:, 0]))
+    return _rings(shapely.union_all([body] + limbs))
+
+
+def islands():
+    """Three separate pieces: a ring (one hole), a bar and a triangle."""
+    ring = shapely.Point(0, 0).buffer(1.0).difference(shapely.Point(0, 0).buffer(0.5))
+    bar = shapely.box(1.5, -0.9, 3.8, -0.3)
+    triangle = shapely.Polygon([(1.8, 0.2), (3.6, 0.4), (2.5, 1.6)])
+    return _rings(shapely.union_all([ring, bar, triangle]))
+
+
+def drawn_cat(size=240):
+    """A cat painted into a bitmap (scikit-image's drawing) and traced: eye holes, four legs,
+    pointed ears and a thin curled tail, with the staircase outline of a traced image."""
+    from skimage import draw
+
+    image = np.zeros((size, size), dtype=bool)
+
+    def paint(rows, columns, value=True):
+        image[rows, columns] = value
+
+    paint(*draw.ellipse(90, 130, 50, 80, image.shape))
+    paint(*draw.disk((160, 70), 38, shape=image.shape))
+    paint(*draw.polygon([180, 228, 196], [38, 45, 72], image.shape))
+    paint(*draw.polygon([196, 228, 180], [68, 95, 102], image.shape))
+    t = np.linspace(0, 1, 80)
+    for row, column in zip(80 + 120 * t ** 1.5, 200 + 22 * np.sin(3 * t)):
+        paint(*draw.disk((row, column), 7, shape=image.shape))
+    for column in (75, 110, 150, 185):
+        paint(*draw.rectangle((5, column - 9), (60, column + 9), shape=image.shape))
+    for column in (56, 84):
+        paint(*draw.disk((168, column), 6, shape=image.shape), False)
+    return solver.trace_silhouette(image, tolerance=1.0)
+
+
+def traced_blob(size=200):
+    """An organic outline with two holes: a sum of Gaussian bumps and dents, thresholded and
+    traced."""
+    y, x = np.mgrid[0:size, 0:size] / size
+    field = np.zeros_like(x)
+    bumps = [(0.35, 0.45, 0.16, 1.0), (0.62, 0.55, 0.13, 1.0), (0.75, 0.3, 0.08, 1.0),
+             (0.3, 0.75, 0.07, 0.9), (0.2, 0.25, 0.06, 0.9), (0.38, 0.47, 0.045, -1.2),
+             (0.63, 0.56, 0.035, -1.0)]
+    for cx, cy, spread, weight in bumps:
+        field += weight * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * spread ** 2))
+    return solver.trace_silhouette(field > 0.55, tolerance=1.0)
+
+
 def _rings(geometry):
     return [ring for island in solver.shapes.geometry_rings(geometry) for ring in island]
 
