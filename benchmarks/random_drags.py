@@ -61,7 +61,7 @@ from benchmarks.metrics import flipped  # noqa: E402
 from benchmarks.shapes import (drawn_cat, glyph, horse, islands, octopus, star, stick_figure,  # noqa: E402
                                traced_blob)
 from benchmarks.solver_speed import libigl_arap  # noqa: E402
-from solver.handles import select_region  # noqa: E402
+from solver.rigging.handles import select_region  # noqa: E402
 
 __all__ = ["SHAPES", "SIZES", "CONFIGS", "Case", "cases", "sized_graph", "random_drag", "place_drag",
            "default_deformer", "reference", "measure", "run", "summary", "by_shape", "oddities",
