@@ -11,14 +11,15 @@ eliminated, so moving handles only changes right-hand sides.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .area import AreaConstraint
 from .energy import Energy
 from .folds import FoldPenalty
-from .optimizer import minimise
+from .hessian import NewtonMatrix
+from .optimizer import minimise, newton
 from .options import Options
 from .preconditioner import choose
 from .shapes import box_centre
@@ -135,26 +136,43 @@ class Deformer:
         if self.prevent_flips:
             self._folds = FoldPenalty(graph, unknowns, options.fold_threshold, options.fold_weight,
                                       options.sliver_area)
-        coarse = None
-        if newton or (newton is None and graph.n <= options.coarse_start_points):
+        triangles = graph.triangles if self._folds is not None else None
+        self._newton = newton is True or (newton is None and graph.n <= options.newton_max_points)
+
+        def make_deformer(coarse_graph, coarse_handles):
+            return Deformer(coarse_graph, coarse_handles, weights, self.preserve_area, newton=True,
+                            prevent_flips=self.prevent_flips,
+                            options=replace(options, tolerance=options.coarse_tolerance))
+
+        coarse = None if newton is True else self._coarse_copy(copies)
+        if coarse is None:
             self._start = SimilarityStart(graph, unknowns)
-            if newton is None and graph.n >= options.coarse_ratio * options.coarse_interior:
-                coarse = copies.get(graph, options.coarse_interior, options.coarse_detail)
-                if coarse is not None and options.coarse_ratio * coarse[0].n > graph.n:
-                    coarse = None  # not coarse enough to be cheaper than the Newton matrix
         else:
-            def make_deformer(coarse_graph, coarse_handles):
-                return Deformer(coarse_graph, coarse_handles, weights, self.preserve_area, newton=True,
-                                prevent_flips=self.prevent_flips, options=options)
-            self._start = CoarseStart(graph, self.handles, make_deformer, copies)
-            coarse = self._start.copy
-        self._preconditioner = choose(self.energy, self.free, graph.triangles if self._folds else None,
-                                      newton, options, coarse)
+            self._start = CoarseStart(graph, self.handles, coarse, make_deformer)
+        if self._newton:
+            self._preconditioner = NewtonMatrix(self.energy, self.free, triangles)
+        else:
+            self._preconditioner = choose(self.energy, self.free, triangles, newton, options, coarse)
         if self.preserve_area:
             self._area = AreaConstraint(graph, self.free, unknowns.fixed)
             if not np.isin(graph.boundary, self.free).any():
                 raise ValueError("preserve_area needs a boundary point that can move: every boundary point is "
                                  "a handle or lies on an island without handles, which stays at rest")
+
+    def _coarse_copy(self, copies):
+        """The coarse copy a solve starts from: above ``options.coarse_start_points`` points the
+        default spacing (a few hundred points, whatever the fine graph's density); below, an
+        outline of about ``options.coarse_interior`` interior points, or None when that is not
+        ``options.coarse_ratio`` times smaller than the graph."""
+        graph, options = self.graph, self.options
+        if graph.n > options.coarse_start_points:
+            return copies.get(graph)
+        if graph.n < options.coarse_ratio * options.coarse_interior:
+            return None
+        copy = copies.get(graph, options.coarse_interior, options.coarse_detail)
+        if copy is None or options.coarse_ratio * copy[0].n > graph.n:
+            return None
+        return copy
 
     def _start_pose(self, targets, initial):
         rest = self.graph.points
@@ -228,8 +246,9 @@ class Deformer:
         if self._folds is not None:
             self._folds.hold(fixed)
         try:
-            result = minimise(self, self._preconditioner, local[self.free].T.ravel(), self.options, self._size,
-                              max_iterations, tolerance, self._area)
+            optimiser = newton if self._newton else minimise
+            result = optimiser(self, self._preconditioner, local[self.free].T.ravel(), self.options, self._size,
+                               max_iterations, tolerance, self._area)
         except RuntimeError as error:  # qdldl: a matrix that is not positive definite
             raise ValueError(f"the deformation system is singular ({error}): the weights or handles "
                              "leave part of the shape free to move without changing the energy") from None

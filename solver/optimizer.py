@@ -1,5 +1,12 @@
-"""How the energy is minimised: L-BFGS over a preconditioner, with a backtracking line search.
+"""How the energy is minimised: Newton's method (:func:`newton`), or L-BFGS over a
+preconditioner (:func:`minimise`).
 
+:func:`newton` refactorises :class:`~solver.hessian.NewtonMatrix` at every iterate (exact where
+positive definite, filtered elsewhere) and searches along the step for the strong Wolfe
+conditions: the step may grow as well as shrink, since away from a minimum the filtered matrix
+overestimates the energy's curvature. Its only knobs are the line search's two constants.
+
+:func:`minimise`, L-BFGS, serves graphs too large to refactorise at every iterate:
 The preconditioner (:mod:`solver.preconditioner`) is L-BFGS's initial inverse Hessian; the
 curvature pairs it keeps add what the preconditioner misses. Every accepted step lowers the
 energy (Armijo). The preconditioner is refreshed at the current pose, which clears the pairs,
@@ -20,7 +27,7 @@ import numpy as np
 
 from .area import multiplier, tangent
 
-__all__ = ["Result", "minimise"]
+__all__ = ["Result", "minimise", "newton"]
 
 
 @dataclass
@@ -44,6 +51,56 @@ class Result:
     energies: list = field(default_factory=list)
     converged: bool = False
     refreshes: int = 0
+
+
+def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=None):
+    """Minimise ``objective`` by Newton's method from ``v``; arguments and result as for
+    :func:`minimise`, with ``matrix`` a :class:`~solver.hessian.NewtonMatrix` refreshed at every
+    iterate.
+
+    With ``area`` the step is projected onto the constraint's tangent in the matrix's metric and
+    each trial point moved back onto the constraint, so the line search only backtracks (Armijo).
+    """
+    step_limit = tolerance * size
+    result = Result(v)
+    matrix.reset()  # a solve depends on its targets alone, not on the last solve's history
+    if area is not None:
+        objective.refresh(v, None)
+        if not area.project(v, matrix.solve):
+            raise ValueError(f"preserve_area: found no pose with the rest area near the start for these "
+                             f"targets (the nearest was {area.area(v) / area.rest - 1.0:.2g} off it)")
+    energy, gradient, pose = objective.evaluate(v)  # gradient: half the true one
+    direction = None
+    for _ in range(max_iterations):
+        objective.refresh(v, pose)
+        result.refreshes += 1
+        search_gradient = gradient
+        if area is not None:
+            jacobian = area.jacobian(v)
+            direction = matrix.solve(jacobian)
+            search_gradient = gradient - multiplier(gradient, jacobian, direction) * jacobian
+        step = -matrix.solve(search_gradient)
+        if area is not None:
+            step = tangent(step, jacobian, direction)
+        if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit:
+            result.converged = True
+            break
+        slope = 2.0 * float(gradient @ step)
+        if area is None:
+            moved = _wolfe_search(objective, options, v, energy, slope, step)
+        else:
+            moved = _line_search(objective, options, v, energy, step, slope, area, direction)
+        result.iterations += 1
+        if moved is None:  # no decrease is possible: a minimum to rounding
+            result.energies.append(energy)
+            result.converged = tolerance > 0.0
+            if tolerance > 0.0:
+                break
+            continue
+        v, energy, gradient, pose = moved
+        result.energies.append(energy)
+    result.v = v
+    return result
 
 
 def minimise(objective, preconditioner, v, options, size, max_iterations, tolerance, area=None):
@@ -186,3 +243,45 @@ def _line_search(objective, options, v, energy, step, slope, area, direction):
                 return trial, trial_energy, gradient, pose
         alpha *= 0.5
     return None
+
+
+def _wolfe_search(objective, options, v, energy, slope, step):
+    """A step length meeting the strong Wolfe conditions along ``step`` (Nocedal and Wright,
+    algorithms 3.5 and 3.6): sufficient decrease (``options.armijo``) and a slope reduced to
+    ``options.wolfe_curvature`` of the first. From the full step it doubles while the energy
+    keeps falling steeply, then narrows the bracket by safeguarded quadratic interpolation.
+
+    Returns ``(v, energy, half gradient, pose)`` at the step taken, or None when no trial
+    lowers the energy (``slope`` must be negative). ``options.max_halvings`` bounds the trials.
+    """
+    if slope >= 0.0:
+        return None
+    curvature = options.wolfe_curvature
+    low, low_energy, low_slope, best = 0.0, energy, slope, None
+    high = high_energy = None
+    alpha = 1.0
+    for _ in range(options.max_halvings):
+        trial = v + alpha * step
+        trial_energy, gradient, pose = objective.evaluate(trial)
+        trial_slope = 2.0 * float(gradient @ step)
+        if trial_energy > energy + options.armijo * alpha * slope or (best is not None and trial_energy >= low_energy):
+            high, high_energy = alpha, trial_energy
+        else:
+            if abs(trial_slope) <= -curvature * slope:
+                return trial, trial_energy, gradient, pose
+            if trial_slope >= 0.0:  # past the minimum along the line: bracket between here and low
+                high, high_energy = low, low_energy
+            low, low_energy, low_slope, best = alpha, trial_energy, trial_slope, (trial, trial_energy, gradient, pose)
+        if high is None:
+            alpha *= 2.0
+            continue
+        width = high - low
+        if abs(width) <= 1e-12 * max(abs(high), 1.0):
+            break
+        # Minimiser of the quadratic through low's value and slope and high's value, kept in
+        # the middle 80% of the bracket.
+        curve = high_energy - low_energy - low_slope * width
+        middle = low - low_slope * width * width / (2.0 * curve) if curve > 0.0 else low + 0.5 * width
+        left, right = min(low, high), max(low, high)
+        alpha = float(np.clip(middle, left + 0.1 * (right - left), right - 0.1 * (right - left)))
+    return best

@@ -28,7 +28,17 @@ class Options:
     history : int
         Curvature pairs L-BFGS keeps.
     armijo : float
-        Sufficient-decrease constant of the backtracking line search.
+        Sufficient-decrease constant of the line searches.
+    wolfe_curvature : float
+        Newton's line search stops where the slope along the step has fallen to this fraction
+        of its first value (the strong Wolfe curvature condition; 0.9 is the usual choice for
+        Newton and quasi-Newton steps).
+    newton_max_points : int
+        Graphs up to this many points are solved by Newton's method, refactorising the Newton
+        matrix at every iterate; larger ones by L-BFGS over a preconditioner that is
+        refactorised rarely or never.
+    coarse_tolerance : float
+        ``tolerance`` of the coarse copy's solve that a default solve starts from.
     max_halvings : int
         Step halvings the line search tries before it calls the pose a minimum to rounding.
     refreshes : int
@@ -74,6 +84,9 @@ class Options:
     tolerance: float = 1e-4
     history: int = 16
     armijo: float = 1e-4
+    wolfe_curvature: float = 0.9
+    newton_max_points: int = 3000
+    coarse_tolerance: float = 1e-3
     max_halvings: int = 30
     refreshes: int = 4
     refresh_until: float = 1e-2

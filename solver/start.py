@@ -136,14 +136,15 @@ class CoarseStart:
     ----------
     graph : solver.Graph
     handles : (h,) int ndarray
+    copy : (solver.Graph, solver.Binding)
+        The coarse copy and the binding of ``graph``'s points to it (:meth:`CoarseCopies.get`).
     make_deformer : callable
         ``make_deformer(coarse_graph, coarse_handles)``: the deformer that solves the copy.
-    copies : CoarseCopies
     """
 
-    def __init__(self, graph, handles, make_deformer, copies):
-        self.copy = copies.get(graph)  # the default spacing: a few hundred points
-        coarse, self.binding = self.copy
+    def __init__(self, graph, handles, copy, make_deformer):
+        self.copy = copy
+        coarse, self.binding = copy
         rest = graph.points[handles]
         # Each coarse point nearest a handle point follows that handle point's target.
         _, nearest = cKDTree(coarse.points).query(rest)

@@ -67,11 +67,12 @@ def test_fold_terms_add_the_penalty_gauss_newton_matrix():
 
 
 def test_two_grid_cycle_gives_descent_directions_and_its_coarse_matrix_is_galerkin():
-    """The default preconditioner is not symmetric, but ``g^T M g > 0`` for every ``g`` (see
+    """The two-grid preconditioner is not symmetric, but ``g^T M g > 0`` for every ``g`` (see
     solver.two_grid), and its coarse matrix is ``P^T H P`` of the whole Newton matrix."""
     graph = solver.build_graph(glyph_rings("B"))
     handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
-    deformer = solver.Deformer(graph, handles)
+    # The two-grid serves graphs above Options.newton_max_points: lowered here to reach it.
+    deformer = solver.Deformer(graph, handles, options=solver.Options(newton_max_points=0))
     two_grid = deformer._preconditioner
     pose = graph.points @ np.array([[0.8, -0.6], [0.6, 0.8]]).T * 1.2  # turned and stretched
     rows = np.ascontiguousarray((deformer.energy.matrix @ pose).T)
@@ -95,7 +96,7 @@ def test_two_grid_takes_fold_terms_into_its_smoother_without_refactorising():
     (Woodbury, on the kept factor of K) and into the coarse matrix; directions stay descent."""
     graph = solver.build_graph(glyph_rings("B"))
     handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
-    deformer = solver.Deformer(graph, handles, prevent_flips=True)
+    deformer = solver.Deformer(graph, handles, prevent_flips=True, options=solver.Options(newton_max_points=0))
     two_grid = deformer._preconditioner
     factor = two_grid._smoother._factor
     rows = np.ascontiguousarray((deformer.energy.matrix @ graph.points).T)
