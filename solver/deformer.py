@@ -11,7 +11,7 @@ eliminated, so moving handles only changes right-hand sides.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -120,7 +120,8 @@ class Deformer:
         self._size = graph.size  # a bounding-box measure: once, not per solve
         self.unknowns = Unknowns(graph, handles)
         self.free = self.unknowns.free
-        self._folds = self._area = self._start = None
+        self._folds = self._area = None
+        self._starts = []
         if len(self.free):
             self._build(weights, newton, CoarseCopies() if coarse_copies is None else coarse_copies)
 
@@ -141,14 +142,16 @@ class Deformer:
 
         def make_deformer(coarse_graph, coarse_handles):
             return Deformer(coarse_graph, coarse_handles, weights, self.preserve_area, newton=True,
-                            prevent_flips=self.prevent_flips,
-                            options=replace(options, tolerance=options.coarse_tolerance))
+                            prevent_flips=self.prevent_flips, options=options)
 
         coarse = None if newton is True else self._coarse_copy(copies)
-        if coarse is None:
-            self._start = SimilarityStart(graph, unknowns)
-        else:
-            self._start = CoarseStart(graph, self.handles, coarse, make_deformer)
+        # Where a solve may start: the as-similar-as-possible pose (up to newton_max_points) and
+        # the pose of a solved coarse copy; with both, the one of lower energy.
+        self._starts = []
+        if newton is True or graph.n <= options.newton_max_points:
+            self._starts.append(SimilarityStart(graph, unknowns))
+        if coarse is not None:
+            self._starts.append(CoarseStart(graph, self.handles, coarse, make_deformer))
         if self._newton:
             self._preconditioner = NewtonMatrix(self.energy, self.free, triangles)
         else:
@@ -187,12 +190,14 @@ class Deformer:
         resting = self.unknowns.resting
         positions[resting] = rest[resting]
         positions[self.handles] = targets
-        if initial is None and self._start is not None:
-            if isinstance(self._start, CoarseStart):
-                positions[self.free] = self._start.pose(targets)[self.free]
-            else:
-                positions = self._start.pose(positions)
-        return positions
+        if initial is not None or not self._starts:
+            return [positions]
+        candidates = []
+        for start in self._starts:
+            pose = start.pose(positions, targets)
+            pose[self.unknowns.fixed] = positions[self.unknowns.fixed]
+            candidates.append(pose)
+        return candidates
 
     def solve(self, targets, max_iterations=None, tolerance=None, initial=None):
         """Deform so that ``handles[i]`` lands on ``targets[i]``.
@@ -231,23 +236,25 @@ class Deformer:
         if max_iterations < 0 or tolerance < 0:
             raise ValueError("max_iterations and tolerance must be >= 0")
 
-        positions = self._start_pose(targets, initial)
+        candidates = self._start_pose(targets, initial)
+        positions = candidates[0]
         if len(self.free) == 0:
             return Solution(positions, 0, [], True)
         # The energy ignores translation, but rounding in the area (a sum of products of
         # coordinates) does not: a shape dragged 100 times its size away kept its area to only
         # 3e-6. So iterate on coordinates centred on the start pose.
         origin = box_centre(positions)
-        local = positions - origin
-        fixed = local[self.unknowns.fixed]
+        fixed = positions[self.unknowns.fixed] - origin
         self._fixed_rows = (self._fixed_columns @ fixed).T.ravel()
         if self._area is not None:
             self._area.hold(fixed.T.ravel())
         if self._folds is not None:
             self._folds.hold(fixed)
+        starts = [(candidate[self.free] - origin).T.ravel() for candidate in candidates]
+        v = min(starts, key=lambda start: self.evaluate(start)[0]) if len(starts) > 1 else starts[0]
         try:
             optimiser = newton if self._newton else minimise
-            result = optimiser(self, self._preconditioner, local[self.free].T.ravel(), self.options, self._size,
+            result = optimiser(self, self._preconditioner, v, self.options, self._size,
                                max_iterations, tolerance, self._area)
         except RuntimeError as error:  # qdldl: a matrix that is not positive definite
             raise ValueError(f"the deformation system is singular ({error}): the weights or handles "

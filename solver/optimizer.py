@@ -70,19 +70,16 @@ def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=
             raise ValueError(f"preserve_area: found no pose with the rest area near the start for these "
                              f"targets (the nearest was {area.area(v) / area.rest - 1.0:.2g} off it)")
     energy, gradient, pose = objective.evaluate(v)  # gradient: half the true one
-    direction = None
     for _ in range(max_iterations):
-        objective.refresh(v, pose)
+        step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area)
         result.refreshes += 1
-        search_gradient = gradient
-        if area is not None:
-            jacobian = area.jacobian(v)
-            direction = matrix.solve(jacobian)
-            search_gradient = gradient - multiplier(gradient, jacobian, direction) * jacobian
-        step = -matrix.solve(search_gradient)
-        if area is not None:
-            step = tangent(step, jacobian, direction)
-        if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit:
+        if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit and not matrix.exact:
+            # A filtered matrix is stiffer than the energy, so its short step says little of the
+            # distance to the minimum (in a flat valley it may be far): ask the exact one.
+            matrix.reset()
+            step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area)
+            result.refreshes += 1
+        if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit and matrix.exact:
             result.converged = True
             break
         slope = 2.0 * float(gradient @ step)
@@ -101,6 +98,19 @@ def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=
         result.energies.append(energy)
     result.v = v
     return result
+
+
+def _newton_step(objective, matrix, v, pose, gradient, area):
+    """Refactor ``matrix`` at ``v`` and return the Newton step (projected onto the area
+    constraint's tangent with ``area``), with the constraint's jacobian and ``H^-1 J`` (None
+    without)."""
+    objective.refresh(v, pose)
+    if area is None:
+        return -matrix.solve(gradient), None, None
+    jacobian = area.jacobian(v)
+    direction = matrix.solve(jacobian)
+    step = -matrix.solve(gradient - multiplier(gradient, jacobian, direction) * jacobian)
+    return tangent(step, jacobian, direction), jacobian, direction
 
 
 def minimise(objective, preconditioner, v, options, size, max_iterations, tolerance, area=None):

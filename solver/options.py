@@ -37,8 +37,6 @@ class Options:
         Graphs up to this many points are solved by Newton's method, refactorising the Newton
         matrix at every iterate; larger ones by L-BFGS over a preconditioner that is
         refactorised rarely or never.
-    coarse_tolerance : float
-        ``tolerance`` of the coarse copy's solve that a default solve starts from.
     max_halvings : int
         Step halvings the line search tries before it calls the pose a minimum to rounding.
     refreshes : int
@@ -86,7 +84,6 @@ class Options:
     armijo: float = 1e-4
     wolfe_curvature: float = 0.9
     newton_max_points: int = 3000
-    coarse_tolerance: float = 1e-3
     max_halvings: int = 30
     refreshes: int = 4
     refresh_until: float = 1e-2

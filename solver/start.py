@@ -61,9 +61,9 @@ class SimilarityStart:
         self._rest_pull = tiny * (graph.points[free] - self._origin).T.ravel()
         self._factor = qdldl.Solver(triu(normal, format="csc"), upper=True)
 
-    def pose(self, positions):
+    def pose(self, positions, targets=None):
         """``positions`` (n, 2) with the free points moved to the as-similar-as-possible pose
-        for the fixed ones (a new array)."""
+        for the fixed ones (a new array); ``targets`` is not needed (the fixed points hold them)."""
         origin = self._origin
         stacked = np.concatenate([positions[:, 0] - origin[0], positions[:, 1] - origin[1]])
         rhs = self._rest_pull - self._similarity_free_transpose @ (
@@ -152,7 +152,8 @@ class CoarseStart:
         self._offset = coarse.points[coarse_handles] - rest[self._first]
         self.deformer = make_deformer(coarse, coarse_handles)
 
-    def pose(self, targets):
-        """Fine graph positions (n, 2) for the handles' ``targets`` (h, 2)."""
+    def pose(self, positions, targets):
+        """Fine graph positions (n, 2) for the handles' ``targets`` (h, 2); ``positions`` is
+        not needed (the coarse copy's pose is carried to every fine point)."""
         coarse = self.deformer.solve(targets[self._first] + self._offset)
         return self.binding.apply(coarse.positions)

@@ -79,7 +79,7 @@ def test_a_graph_too_small_for_a_coarse_copy_starts_as_similar_as_possible():
     assert graph.n < 2 * solver.Options().coarse_interior
     handles = np.flatnonzero(np.abs(graph.points[:, 0]) > 0.8)
     deformer = solver.Deformer(graph, handles)
-    assert isinstance(deformer._start, solver.start.SimilarityStart)
+    assert [type(start) for start in deformer._starts] == [solver.start.SimilarityStart]
     targets = graph.points[handles] * [1.3, 1.0]
     pose = deformer.solve(targets)
     assert pose.converged and np.array_equal(pose.positions[handles], targets)
