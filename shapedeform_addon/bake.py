@@ -28,7 +28,7 @@ import numpy as np
 from bpy.props import IntProperty
 
 from . import compat, rig
-from .sources import RigError
+from .sources import RigError, with_article
 
 PREFIX = "sd_bake_"
 MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
@@ -285,7 +285,8 @@ class Bake:
             if not settings.is_bound:
                 raise RigError(f"'{obj.name}' is not bound: nothing to bake")
             if settings.kind not in _WRITE:
-                raise RigError(f"'{obj.name}' is a {settings.kind.lower()} rig, which cannot be baked yet")
+                raise RigError(f"'{obj.name}' is {with_article(settings.kind.lower() or 'unknown')} rig, "
+                               "which cannot be baked yet")
             if not any(item.object is not None for item in settings.handles):
                 raise RigError(f"'{obj.name}' has no handles: nothing moves, nothing to bake")
         self.frames = list(frames)

@@ -238,3 +238,20 @@ def test_image_plane_bake_plays_without_the_extension(addon, tmp_path):
     assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 6) == [obj]
     assert len(obj.data.shape_keys.key_blocks) == 1 + len(FRAMES)
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
+
+
+def test_the_documented_python_entry_point_imports(addon):
+    """README names the function a script calls to bake; that name must import as written."""
+    import importlib
+    import os
+    import re
+
+    from conftest import ROOT
+
+    with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as readme:
+        text = readme.read()
+    paths = re.findall(r"`([\w.]+)\.bake_objects\(", text)
+    assert paths, "README does not show how to call bake_objects from Python"
+    for module_path in paths:
+        function = getattr(importlib.import_module(module_path), "bake_objects")
+        assert function is addon.shapedeform_addon.bake.bake_objects
