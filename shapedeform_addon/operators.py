@@ -33,7 +33,7 @@ class SHAPEDEFORM_OT_bind(bpy.types.Operator):
 
 
 class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
-    """Give back the rest shape exactly and remove the rig and its handles"""
+    """Give back the rest shape exactly and remove the rig, its handles and its bake"""
 
     bl_idname = "shapedeform.unbind"
     bl_label = "Unbind"

@@ -235,13 +235,21 @@ def bind(obj):
 
 
 def unbind(obj):
-    """Give back the rest shape exactly and remove everything the rig added (handles too)."""
-    from . import handles
+    """Give back the rest shape exactly and remove everything the rig added: bake, handles, data.
+
+    The bake goes too (as *Clear Bake* removes it): left behind it would keep playing the
+    deformation over the object's own shape, and its mark would keep a new rig on the object
+    from ever posing it.
+    """
+    from . import bake, handles
 
     settings = obj.shapedeform
     if not settings.is_bound:
         raise RigError(f"'{obj.name}' is not bound")
     handles.remove_all(obj)
+    # Before the restore: the bake's keys (a mesh's shape keys, a curve's F-curves) sit on the
+    # data the restore writes.
+    bake.clear(obj)
     sources.module_for(obj).restore(obj)
     for key in _STORED_KEYS:
         if key in settings:

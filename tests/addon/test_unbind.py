@@ -1,0 +1,81 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Unbinding gives the object back whatever state its rig is in: baked (issue 15, defect 8)."""
+
+import bpy
+import numpy as np
+import pytest
+
+import rig_checks as checks
+from test_bake import rig
+from test_rig_curve import curve_points, text_curve
+from test_rig_grease_pencil import drawing_points
+from test_rig_mesh import grid
+
+
+def baked_curve_channels(obj):
+    """Data paths of the F-curves on a curve's points (what a curve bake makes)."""
+    from bpy_extras import anim_utils
+
+    animation = obj.data.animation_data
+    if animation is None or animation.action is None or animation.action_slot is None:
+        return []
+    bag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+    return [c.data_path for c in bag.fcurves if c.data_path.startswith("splines[")] if bag else []
+
+
+def unbind(obj):
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+
+
+def make_mesh():
+    obj = grid()
+    return obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], lambda: checks.evaluated_mesh_points(obj)
+
+
+def make_curve():
+    obj = text_curve("I")
+    rest = np.concatenate([p[:, :3] for p in curve_points(obj)])
+    evaluated = lambda: np.concatenate(curve_points(obj.evaluated_get(bpy.context.evaluated_depsgraph_get())))
+    return obj, rest[np.argmin(rest[:, 1])], rest[np.argmax(rest[:, 1])], evaluated
+
+
+def make_grease_pencil():
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    rest = drawing_points(obj, evaluated=False)
+    return obj, rest[np.argmin(rest[:, 2])], rest[np.argmax(rest[:, 2])], lambda: drawing_points(obj)
+
+
+@pytest.mark.parametrize("make", [make_mesh, make_curve, make_grease_pencil])
+def test_unbind_removes_the_bake_and_a_new_rig_is_live(addon, make):
+    obj, first, second, evaluated = make()
+    scene = bpy.context.scene
+    rest = evaluated().copy()
+    rig(obj, first, second, (0.4, 0.3, 0.0))
+    assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 6) == [obj]
+    scene.frame_set(6)
+    assert np.abs(evaluated() - rest).max() > 0.1  # the bake plays
+
+    unbind(obj)
+    assert "baked" not in obj.shapedeform and "baked_gp_frames" not in obj.shapedeform
+    for frame in (1, 4, 6):  # the object is back to its own shape on every frame
+        scene.frame_set(frame)
+        assert evaluated().tobytes() == rest.tobytes(), f"frame {frame}"
+    if obj.type == "MESH":
+        assert obj.data.shape_keys is None
+    elif obj.type == "CURVE":
+        assert baked_curve_channels(obj) == []
+    else:
+        assert [[f.frame_number for f in layer.frames] for layer in obj.data.layers] == [[1]] * len(obj.data.layers)
+
+    # A new rig on it is live: moving a handle moves the shape.
+    scene.frame_set(1)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, first))
+    handle = checks.add_handle(obj, checks.world(obj, second))
+    handle.location.x += 0.3
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    assert np.abs(evaluated() - rest).max() > 0.1
