@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Unbinding gives the object back whatever state its rig is in: baked (issue 15, defect 8)."""
+"""Unbinding gives the object back whatever state its rig is in: baked (issue 15, defect 8) or
+duplicated (defect 9)."""
 
 import bpy
 import numpy as np
@@ -9,7 +10,7 @@ import rig_checks as checks
 from test_bake import rig
 from test_rig_curve import curve_points, text_curve
 from test_rig_grease_pencil import drawing_points
-from test_rig_mesh import grid
+from test_rig_mesh import grid, rig_with_two_handles
 
 
 def baked_curve_channels(obj):
@@ -79,3 +80,38 @@ def test_unbind_removes_the_bake_and_a_new_rig_is_live(addon, make):
     bpy.context.view_layer.update()
     assert obj.shapedeform.status == ""
     assert np.abs(evaluated() - rest).max() > 0.1
+
+
+def test_unbinding_a_duplicate_leaves_the_original_rig_alone(addon):
+    original, left, right = rig_with_two_handles()
+    collection = original.shapedeform.handle_collection
+    names = {original.name, left.name, right.name}
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    original.select_set(True)
+    bpy.context.view_layer.objects.active = original
+    assert bpy.ops.object.duplicate() == {"FINISHED"}  # Shift+D: the handles are not duplicated
+    copy = bpy.context.active_object
+    assert copy is not original and copy.shapedeform.is_bound
+    saved = copy.data.attributes["sd_rest"]  # the copy's mesh is a copy: its rest came along
+    rest = np.empty(len(saved.data) * 3, np.float32)
+    saved.data.foreach_get("vector", rest)
+    rest = rest.reshape(-1, 3)
+
+    unbind(copy)
+    assert not copy.shapedeform.is_bound and len(copy.shapedeform.handles) == 0
+    assert checks.mesh_points(copy).tobytes() == rest.tobytes()
+    # The original keeps its handles, their collection, and a working rig.
+    assert {o.name for o in bpy.data.objects} == names | {copy.name}
+    assert [item.object for item in original.shapedeform.handles] == [left, right]
+    assert collection.name in bpy.data.collections and set(collection.objects) == {left, right}
+    right.location.y += 0.4
+    bpy.context.view_layer.update()
+    assert original.shapedeform.status == ""
+    tip = np.argmin(np.linalg.norm(rest[:, :2] - [1.0, 0.0], axis=1))
+    assert checks.evaluated_mesh_points(original)[tip, 1] == pytest.approx(0.4, abs=1e-5)
+
+    # Unbinding the original afterwards still removes its own handles and collection.
+    unbind(original)
+    assert {o.name for o in bpy.data.objects} == {original.name, copy.name}
+    assert not any("Handles" in c.name for c in bpy.data.collections)
