@@ -46,7 +46,9 @@ class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
             return {"CANCELLED"}
         if obj.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")
-        rig.unbind(obj)
+        lost = rig.unbind(obj)
+        if lost:
+            self.report({"WARNING"}, f"Unbound '{obj.name}', but could not give back {'; '.join(lost)}")
         return {"FINISHED"}
 
 

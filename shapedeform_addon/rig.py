@@ -235,29 +235,45 @@ def bind(obj):
 
 
 def unbind(obj):
-    """Give back the rest shape exactly and remove everything the rig added: bake, handles, data.
+    """Give back the rest shape exactly and remove everything the rig added: bake, data, handles.
 
     The bake goes too (as *Clear Bake* removes it): left behind it would keep playing the
     deformation over the object's own shape, and its mark would keep a new rig on the object
     from ever posing it.
+
+    A broken rig (a grease-pencil keyframe it deforms deleted, its rest data gone) is unbound
+    too: what can be given back is, and the rest is returned to be told to the user. The
+    handles go last, once the rest shape is back, so a failure never leaves a rig without them.
+
+    Returns
+    -------
+    list of str
+        What could not be given back, as phrases for a message (empty when all was).
+
+    Raises
+    ------
+    RigError
+        ``obj`` is not bound; nothing was changed.
     """
     from . import bake, handles
 
     settings = obj.shapedeform
     if not settings.is_bound:
         raise RigError(f"'{obj.name}' is not bound")
-    handles.remove_all(obj)
+    source = sources.module_for(obj)
     # Before the restore: the bake's keys (a mesh's shape keys, a curve's F-curves) sit on the
     # data the restore writes.
     bake.clear(obj)
-    sources.module_for(obj).restore(obj)
+    lost = source.restore(obj)
     for key in _STORED_KEYS:
         if key in settings:
             del settings[key]
     settings.is_bound = False
     settings.kind = ""
     settings.status = ""
+    handles.remove_all(obj)
     forget(obj)
+    return lost
 
 
 def rigged_object(context):

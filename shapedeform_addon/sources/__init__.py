@@ -10,8 +10,10 @@ Each source module offers the same functions:
     The rest points saved at bind time, in the order :func:`write` takes.
 ``write(obj, points)``
     Write (p, 3) float32 points back, one ``foreach_set`` per array.
-``restore(obj)``
-    Write the rest points back exactly and delete the saved rest data.
+``restore(obj) -> list of str``
+    Write the rest points back exactly and delete the saved rest data. Never fails for missing
+    data, so a broken rig can always be unbound: it gives back what it can and returns what it
+    could not, as phrases for a message ("the drawing of layer 'Ink' at frame 3 (...)").
 """
 
 from dataclasses import dataclass, field

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Unbinding gives the object back whatever state its rig is in: baked (issue 15, defect 8) or
-duplicated (defect 9)."""
+"""Unbinding gives the object back whatever state its rig is in: baked (issue 15, defect 8),
+duplicated (defect 9), or broken by a deleted grease-pencil keyframe (defect 10)."""
 
 import bpy
 import numpy as np
@@ -115,3 +115,38 @@ def test_unbinding_a_duplicate_leaves_the_original_rig_alone(addon):
     unbind(original)
     assert {o.name for o in bpy.data.objects} == {original.name, copy.name}
     assert not any("Handles" in c.name for c in bpy.data.collections)
+
+
+def test_a_grease_pencil_rig_that_lost_its_drawing_can_be_unbound(addon, capfd):
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    obj.name = "Monkey"
+    lines = obj.data.layers["Lines"]
+    rest = drawing_points(obj, evaluated=False)
+    fills_count = len(obj.data.layers["Fills"].current_frame().drawing.attributes["position"].data)
+    lines_rest = rest[fills_count:].copy()  # drawing_points reads Fills, then Lines
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 2])]))
+    handle = checks.add_handle(obj, checks.world(obj, rest[np.argmax(rest[:, 2])]))
+    handle.location.x += 0.3
+    bpy.context.view_layer.update()
+    assert np.abs(drawing_points(obj) - rest).max() > 0.1
+
+    obj.data.layers["Fills"].frames.remove(1)  # the animator deletes the rigged keyframe
+    handle.location.x += 0.1
+    bpy.context.view_layer.update()
+    assert "lost the drawing of layer 'Fills'" in obj.shapedeform.status
+    capfd.readouterr()
+
+    unbind(obj)
+    printed = capfd.readouterr().out
+    assert "Warning" in printed and "'Fills'" in printed  # what could not be restored, said once
+    assert not obj.shapedeform.is_bound
+    assert not any(key in obj.shapedeform for key in ("gp_layers", "gp_frames", "graph_points", "plane"))
+    assert [o.name for o in bpy.data.objects] == ["Monkey"]
+    assert not any("Handles" in c.name for c in bpy.data.collections)
+    drawing = lines.current_frame().drawing
+    assert "sd_rest" not in drawing.attributes
+    flat = np.empty(len(drawing.attributes["position"].data) * 3, np.float32)
+    drawing.attributes["position"].data.foreach_get("vector", flat)
+    assert flat.tobytes() == lines_rest.tobytes()  # what was left is given back exactly
