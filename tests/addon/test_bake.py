@@ -240,6 +240,74 @@ def test_image_plane_bake_plays_without_the_extension(addon, tmp_path):
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
 
 
+# -- issue 15, defect 11: a rebake after unbind and bind on a baked frame
+
+def monkey():
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    rest = drawing_points(obj, evaluated=False)
+    rig(obj, rest[np.argmin(rest[:, 2])], rest[np.argmax(rest[:, 2])], (0.3, 0.0, 0.0))
+    return obj
+
+
+def frame_numbers(obj):
+    return {layer.name: sorted(f.frame_number for f in layer.frames) for layer in obj.data.layers}
+
+
+def test_bake_unbind_bind_on_a_baked_frame_and_bake_again(addon):
+    obj = monkey()
+    bake = addon.shapedeform_addon.bake
+    bake.bake_objects([obj], 1, 6)
+    scene = bpy.context.scene
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    scene.frame_set(3)  # a frame the bake made a drawing on
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    rest = drawing_points(obj, evaluated=False)
+    checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 2])]))
+    animate(checks.add_handle(obj, checks.world(obj, rest[np.argmax(rest[:, 2])])), (0.0, 0.0, 0.3))
+    expected = live(lambda: drawing_points(obj))
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    assert all(numbers == list(FRAMES) for numbers in frame_numbers(obj).values())
+    assert_plays_without_extension(lambda: drawing_points(obj), expected)
+
+
+def test_a_bake_never_removes_the_drawing_its_rig_is_bound_to(addon):
+    """A file saved before unbind cleared bakes can list the bound drawing as made by a bake."""
+    obj = monkey()
+    expected = live(lambda: drawing_points(obj))
+    bake = addon.shapedeform_addon.bake
+    bake.bake_objects([obj], 1, 6)
+    obj.shapedeform[bake.GP_FRAMES] = {layer.name: list(FRAMES) for layer in obj.data.layers}
+    assert bake.bake_objects([obj], 1, 6) == [obj]
+    assert all(numbers == list(FRAMES) for numbers in frame_numbers(obj).values())
+    assert_plays_without_extension(lambda: drawing_points(obj), expected)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert all(numbers == [1] for numbers in frame_numbers(obj).values())
+
+
+def test_a_bake_that_cannot_be_written_changes_nothing(addon):
+    """Every object's write is checked before any previous bake is replaced."""
+    mesh = grid()
+    rig(mesh, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    pencil = monkey()
+    bake = addon.shapedeform_addon.bake
+    bake.bake_objects([mesh, pencil], 1, 6)
+    keys = [block.name for block in mesh.data.shape_keys.key_blocks]
+    before = frame_numbers(pencil)
+
+    def lose_the_drawing(done, total):  # as a script or handler might, once every frame is posed
+        if done == total:
+            pencil.data.layers["Fills"].frames.remove(1)
+
+    with pytest.raises(addon.shapedeform_addon.sources.RigError, match="lost the drawing of layer 'Fills'"):
+        bake.bake_objects([mesh, pencil], 2, 4, progress=lose_the_drawing)
+    assert [block.name for block in mesh.data.shape_keys.key_blocks] == keys
+    assert list(mesh.shapedeform["baked"]) == list(pencil.shapedeform["baked"]) == [1, 6, 1]
+    assert frame_numbers(pencil) == {"Fills": before["Fills"][1:], "Lines": before["Lines"]}
+
+
 def test_the_documented_python_entry_point_imports(addon):
     """README names the function a script calls to bake; that name must import as written."""
     import importlib
