@@ -9,10 +9,17 @@ plays without the extension:
 
 - meshes: the reference key "Basis" holds the rest shape, and each baked frame ``f`` a shape
   key ``sd_bake_<f>`` holding that frame's positions, keyed 0 / 1 / 0 at ``f - step``, ``f``,
-  ``f + step`` (linear); glTF and FBX export them as morph targets.
+  ``f + step`` (linear; the first key has no 0 before it, the last none after it); glTF and
+  FBX export them as morph targets.
 - curves: F-curves on every control point's ``co`` (and on Bezier points' ``handle_left`` and
   ``handle_right``), one key per baked frame.
-- grease pencil: a GP keyframe (its own drawing) per baked frame on every layer.
+- grease pencil: a GP keyframe (its own drawing) per baked frame on every rigged layer, where
+  that layer shows the rig's drawing: from its keyframe up to the animator's next one.
+
+One rule outside the baked range, for every kind: the object holds the nearest baked frame (the
+first before the range, the last after it), as keyed animation holds its first and last key.
+A grease-pencil layer shows nothing before its first keyframe, and a bake adds no drawing
+there: the rig's own drawing holds the first baked frame from its keyframe on.
 
 Baking again removes what the previous bake made (recognised by name, by the
 ``shapedeform_bake`` marks and by the GP keyframes listed on the object, never a drawing a rig
@@ -112,6 +119,8 @@ def _add_fcurve(bag, path, index, frames, values):
     points.add(len(frames))
     points.foreach_set("co", np.column_stack([frames, values]).astype(np.float32).ravel())
     points.foreach_set("interpolation", np.full(len(frames), _LINEAR, dtype=np.int32))
+    # Hold the first and last key outside them (Blender's default, stated: the bake's rule).
+    curve.extrapolation = "CONSTANT"
     curve.update()
     return curve
 
@@ -146,11 +155,16 @@ def _write_mesh(obj, frames, captured, step, plan=None):
         obj.data.shape_keys[MARK] = True
     key = obj.data.shape_keys
     bag = _channelbag(key, "KEY", f"{obj.name} Shape Deform Bake")
-    for frame, flat in zip(frames, captured):
+    for i, (frame, flat) in enumerate(zip(frames, captured)):
         block = obj.shape_key_add(name=key_name(frame), from_mix=False)
         block.data.foreach_set("co", flat)
         path = f'key_blocks["{bpy.utils.escape_identifier(block.name)}"].value'
-        _add_fcurve(bag, path, 0, [frame - step, frame, frame + step], [0.0, 1.0, 0.0])
+        # Faded in from the frame before and out to the frame after; the first key has no
+        # fade-in and the last no fade-out, so they hold (constant extrapolation) outside the
+        # range, as every kind does.
+        keys = ([(frames[i - 1], 0.0)] if i > 0 else []) + [(frame, 1.0)] + \
+            ([(frames[i + 1], 0.0)] if i + 1 < len(frames) else [])
+        _add_fcurve(bag, path, 0, *zip(*keys))
 
 
 def _clear_curve(obj):
@@ -211,15 +225,23 @@ def _plan_grease_pencil(obj, frames, captured):
     the bake before anything was removed.
     """
     made = _made_frames(obj)
+    numbers = np.asarray(frames)
     plan, start = [], 0
     for name, bound in grease_pencil.bound_frames(obj):
         drawing = grease_pencil.drawing_at(obj, name, bound)
         if drawing is None:
             raise RigError(f"'{obj.name}' lost the drawing of layer '{name}' at frame {bound}; unbind it")
         count = len(drawing.attributes["position"].data)
-        # The animator's own keyframes (not made by a bake) are not the rig's: they stay.
+        # The animator's own keyframes (not made by a bake) are not the rig's: they stay, and
+        # the rig's drawing shows from its own frame up to the next of them. Only there does the
+        # bake add drawings: never before the layer's first keyframe, never over theirs.
         kept = {f.frame_number for f in obj.data.layers[name].frames} - made.get(name, set())
-        plan.append((name, bound, start, count, kept))
+        until = min((n for n in kept if n > bound), default=None)
+        shown = np.flatnonzero((numbers > bound) & ((numbers < until) if until is not None else True))
+        # The rig's drawing itself holds the nearest baked frame at or before its own (the
+        # first baked frame when the range starts after it), as every baked keyframe holds.
+        hold = max(int(np.searchsorted(numbers, bound, side="right")) - 1, 0)
+        plan.append((name, bound, start, count, hold, shown))
         start += count
     if any(len(points) != start for points in captured):
         raise RigError(f"'{obj.name}' changed its strokes during the bake")
@@ -228,22 +250,18 @@ def _plan_grease_pencil(obj, frames, captured):
 
 def _write_grease_pencil(obj, frames, captured, step, plan):
     made = {}
-    for name, bound, start, count, kept in plan:
+    for name, bound, start, count, hold, shown in plan:
         layer = obj.data.layers[name]
+        # The live rig leaves a baked object alone, so the rig's drawing keeps this pose.
+        _set_positions(grease_pencil.drawing_at(obj, name, bound), captured[hold][start:start + count])
         made[name] = []
-        for frame_number, points in zip(frames, captured):
-            flat = points[start:start + count]
-            if frame_number == bound:
-                # The rig's own drawing is keyed here: it shows this frame's pose (the live
-                # rig leaves a baked object alone, so it stays).
-                _set_positions(grease_pencil.drawing_at(obj, name, bound), flat)
-            elif frame_number not in kept:
-                new = layer.frames.copy(bound, frame_number, instance_drawing=False)
-                drawing = new.drawing  # at once: adding frames can move the others in memory
-                if REST_ATTRIBUTE in drawing.attributes:  # the copy needs no rest of its own
-                    drawing.attributes.remove(drawing.attributes[REST_ATTRIBUTE])
-                _set_positions(drawing, flat)
-                made[name].append(frame_number)
+        for i in shown:
+            new = layer.frames.copy(bound, frames[i], instance_drawing=False)
+            drawing = new.drawing  # at once: adding frames can move the others in memory
+            if REST_ATTRIBUTE in drawing.attributes:  # the copy needs no rest of its own
+                drawing.attributes.remove(drawing.attributes[REST_ATTRIBUTE])
+            _set_positions(drawing, captured[i][start:start + count])
+            made[name].append(int(frames[i]))
     obj.shapedeform[GP_FRAMES] = made
     obj.data.update_tag()
 

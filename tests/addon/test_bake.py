@@ -308,6 +308,76 @@ def test_a_bake_that_cannot_be_written_changes_nothing(addon):
     assert frame_numbers(pencil) == {"Fills": before["Fills"][1:], "Lines": before["Lines"]}
 
 
+# -- issue 15, defect 12: one rule outside the baked range
+
+def rigged_mesh():
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    return obj, lambda: checks.evaluated_mesh_points(obj)
+
+
+def rigged_curve():
+    obj = text_curve("I")
+    rest = np.concatenate([p[:, :3] for p in curve_points(obj)])
+    rig(obj, rest[np.argmin(rest[:, 1])], rest[np.argmax(rest[:, 1])], (0.4, 0.0, 0.0))
+    return obj, lambda: np.concatenate(curve_points(obj.evaluated_get(bpy.context.evaluated_depsgraph_get())))
+
+
+def rigged_grease_pencil():
+    obj = monkey()
+    return obj, lambda: drawing_points(obj)
+
+
+@pytest.mark.parametrize("make", [rigged_mesh, rigged_curve, rigged_grease_pencil])
+def test_outside_the_baked_range_every_kind_holds_the_nearest_baked_frame(addon, make):
+    obj, read = make()
+    expected = live(read)
+    assert np.abs(expected[4] - expected[2]).max() > 0.05
+    addon.shapedeform_addon.bake.bake_objects([obj], 2, 4)
+    addon_utils.disable(ADDON_MODULE, default_set=True)  # what plays is the bake alone
+    try:
+        scene = bpy.context.scene
+        # (A grease-pencil layer shows nothing before its first keyframe, 1: see the next test.)
+        before = [1] if obj.type == "GREASEPENCIL" else [1, 0, -5]
+        for frame, shown in [(f, 2) for f in before] + [(5, 4), (9, 4), (3, 3)]:
+            scene.frame_set(frame)
+            np.testing.assert_allclose(read(), expected[shown], atol=1e-5, err_msg=f"frame {frame}")
+    finally:
+        addon_utils.enable(ADDON_MODULE, default_set=True)
+
+
+def test_a_mesh_bake_with_a_step_has_no_fade_outside_its_range(addon):
+    """Every other frame baked: the first and last keys hold, with no half fade before or after."""
+    obj, read = rigged_mesh()
+    expected = live(read)
+    addon.shapedeform_addon.bake.bake_objects([obj], 2, 6, step=2)
+    scene = bpy.context.scene
+    for frame, shown in [(1, 2), (0, 2), (7, 6), (8, 6)]:
+        scene.frame_set(frame)
+        np.testing.assert_allclose(read(), expected[shown], atol=1e-5, err_msg=f"frame {frame}")
+
+
+def test_a_grease_pencil_bake_adds_drawings_only_where_the_rigged_drawing_shows(addon):
+    obj = monkey()
+    lines = obj.data.layers["Lines"]
+    lines.frames.copy(1, 5)  # the animator's own drawing from frame 5 on
+    mine = drawing_points(obj, evaluated=False)
+    addon.shapedeform_addon.bake.bake_objects([obj], -2, 7)
+    # Nothing before the first keyframe (frame 1): no drawing appears where there was none;
+    # on Lines nothing over the animator's keyframe 5 and after it.
+    assert frame_numbers(obj) == {"Fills": list(range(1, 8)), "Lines": [1, 2, 3, 4, 5]}
+    bpy.context.scene.frame_set(0)
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    assert all(layer.current_frame() is None for layer in evaluated.layers)
+    bpy.context.scene.frame_set(6)
+    drawing = lines.current_frame().drawing
+    assert lines.current_frame().frame_number == 5
+    flat = np.empty(len(drawing.attributes["position"].data) * 3, np.float32)
+    drawing.attributes["position"].data.foreach_get("vector", flat)
+    fills = len(obj.data.layers["Fills"].frames[0].drawing.attributes["position"].data)
+    assert flat.tobytes() == mine[fills:].tobytes()  # the animator's drawing, untouched
+
+
 def test_the_documented_python_entry_point_imports(addon):
     """README names the function a script calls to bake; that name must import as written."""
     import importlib
