@@ -103,7 +103,7 @@ def restore(obj):
     mesh = obj.data
     attribute = mesh.attributes.get(REST_ATTRIBUTE)
     if attribute is None or attribute.domain != "POINT" or attribute.data_type != "FLOAT_VECTOR":
-        return [f"the rest shape (attribute {REST_ATTRIBUTE} is gone; the vertices stay where they are)"]
+        return [f"the rest shape (attribute {REST_ATTRIBUTE} is gone or changed; the vertices stay where they are)"]
     rest = read_vectors(attribute, len(mesh.vertices))
     mesh.attributes.remove(attribute)
     write(obj, rest)
