@@ -46,9 +46,13 @@ class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
             return {"CANCELLED"}
         if obj.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")
+        other = rig.shares_data(obj)
         lost = rig.unbind(obj)
         if lost:
             self.report({"WARNING"}, f"Unbound '{obj.name}', but could not give back {'; '.join(lost)}")
+        elif other is not None:
+            self.report({"INFO"}, f"Unbound '{obj.name}'; its data is shared with '{other.name}', "
+                                  "whose rig keeps deforming it")
         return {"FINISHED"}
 
 

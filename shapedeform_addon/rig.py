@@ -245,6 +245,9 @@ def unbind(obj):
     too: what can be given back is, and the rest is returned to be told to the user. The
     handles go last, once the rest shape is back, so a failure never leaves a rig without them.
 
+    A linked duplicate (its data shared with another bound object) gives up only its own rig:
+    the shared data keeps the other rig's rest data and bake.
+
     Returns
     -------
     list of str
@@ -261,10 +264,18 @@ def unbind(obj):
     if not settings.is_bound:
         raise RigError(f"'{obj.name}' is not bound")
     source = sources.module_for(obj)
-    # Before the restore: the bake's keys (a mesh's shape keys, a curve's F-curves) sit on the
-    # data the restore writes.
-    bake.clear(obj)
-    lost = source.restore(obj)
+    if shares_data(obj) is None:
+        # Before the restore: the bake's keys (a mesh's shape keys, a curve's F-curves) sit on
+        # the data the restore writes.
+        bake.clear(obj)
+        lost = source.restore(obj)
+    else:
+        # A linked duplicate (Alt+D): the data is also the other object's, whose rig still
+        # deforms and bakes it; its rest data and bake stay, only this object's rig goes.
+        for key in (bake.BAKED, bake.GP_FRAMES, "gp_layers", "gp_frames"):
+            settings.pop(key, None)
+        settings.original_data = None
+        lost = []
     for key in _STORED_KEYS:
         if key in settings:
             del settings[key]
@@ -274,6 +285,12 @@ def unbind(obj):
     handles.remove_all(obj)
     forget(obj)
     return lost
+
+
+def shares_data(obj):
+    """Another bound object whose data is ``obj``'s (a linked duplicate), or None."""
+    return next((o for o in bpy.data.objects
+                 if o != obj and o.data is not None and o.data == obj.data and o.shapedeform.is_bound), None)
 
 
 def rigged_object(context):

@@ -150,3 +150,30 @@ def test_a_grease_pencil_rig_that_lost_its_drawing_can_be_unbound(addon, capfd):
     flat = np.empty(len(drawing.attributes["position"].data) * 3, np.float32)
     drawing.attributes["position"].data.foreach_get("vector", flat)
     assert flat.tobytes() == lines_rest.tobytes()  # what was left is given back exactly
+
+
+def test_unbinding_a_linked_duplicate_leaves_the_shared_data_to_the_original(addon):
+    """Alt+D shares the mesh: giving back its rest shape would take the original's rig data."""
+    original, left, right = rig_with_two_handles()
+    saved = original.data.attributes["sd_rest"]
+    rest = np.empty(len(saved.data) * 3, np.float32)
+    saved.data.foreach_get("vector", rest)
+    rest = rest.reshape(-1, 3)
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    original.select_set(True)
+    bpy.context.view_layer.objects.active = original
+    assert bpy.ops.object.duplicate(linked=True) == {"FINISHED"}
+    copy = bpy.context.active_object
+    assert copy.data == original.data
+
+    unbind(copy)
+    assert not copy.shapedeform.is_bound and "graph_points" not in copy.shapedeform
+    assert "sd_rest" in original.data.attributes
+    right.location.y += 0.4
+    bpy.context.view_layer.update()
+    assert original.shapedeform.status == ""
+    tip = np.argmin(np.linalg.norm(rest[:, :2] - [1.0, 0.0], axis=1))
+    assert checks.evaluated_mesh_points(original)[tip, 1] == pytest.approx(0.4, abs=1e-5)
+    unbind(original)
+    assert checks.mesh_points(original).tobytes() == rest.tobytes()
