@@ -1,6 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Baking: every baked frame plays the live pose with the extension disabled; rebake replaces;
-the command line bakes a saved file; animated poses do not depend on the frame shown before."""
+the command line bakes a saved file; animated poses do not depend on the frame shown before;
+a rebake keeps the rig's drawing and a bake that cannot be written changes nothing; outside
+the range every kind holds the nearest baked frame; the documented Python entry point imports."""
 
 import addon_utils
 import bpy
