@@ -3,19 +3,27 @@
 
 A bake poses every frame of a range (the frame's pose depends only on the handles at that
 frame, so the order does not matter), keeps what it computed in memory, and only when every
-frame is done replaces the previous bake of each object. Cancelling or failing half way
-therefore changes nothing. What a bake leaves behind plays without the extension:
+frame is done, and every object's write has been checked, replaces the previous bake of each
+object. Cancelling or failing half way therefore changes nothing. What a bake leaves behind
+plays without the extension:
 
 - meshes: the reference key "Basis" holds the rest shape, and each baked frame ``f`` a shape
   key ``sd_bake_<f>`` holding that frame's positions, keyed 0 / 1 / 0 at ``f - step``, ``f``,
-  ``f + step`` (linear); glTF and FBX export them as morph targets.
+  ``f + step`` (linear; the first key has no 0 before it, the last none after it); glTF and
+  FBX export them as morph targets.
 - curves: F-curves on every control point's ``co`` (and on Bezier points' ``handle_left`` and
   ``handle_right``), one key per baked frame.
-- grease pencil: a GP keyframe (its own drawing) per baked frame on every layer.
+- grease pencil: a GP keyframe (its own drawing) per baked frame on every rigged layer, where
+  that layer shows the rig's drawing: from its keyframe up to the animator's next one.
+
+One rule outside the baked range, for every kind: the object holds the nearest baked frame (the
+first before the range, the last after it), as keyed animation holds its first and last key.
+A grease-pencil layer shows nothing before its first keyframe, and a bake adds no drawing
+there: the rig's own drawing holds the first baked frame from its keyframe on.
 
 Baking again removes what the previous bake made (recognised by name, by the
-``shapedeform_bake`` marks and by the GP keyframes listed on the object) before writing, so it
-replaces and never duplicates.
+``shapedeform_bake`` marks and by the GP keyframes listed on the object, never a drawing a rig
+is bound to) before writing, so it replaces and never duplicates.
 
 A baked object is marked (``obj.shapedeform["baked"] = [start, end, step]``) and the live rig
 leaves it alone: the bake is what plays (a mesh with shape keys would not show the rig's writes
@@ -28,7 +36,7 @@ import numpy as np
 from bpy.props import IntProperty
 
 from . import compat, rig
-from .sources import RigError
+from .sources import RigError, grease_pencil, with_article
 
 PREFIX = "sd_bake_"
 MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
@@ -111,6 +119,8 @@ def _add_fcurve(bag, path, index, frames, values):
     points.add(len(frames))
     points.foreach_set("co", np.column_stack([frames, values]).astype(np.float32).ravel())
     points.foreach_set("interpolation", np.full(len(frames), _LINEAR, dtype=np.int32))
+    # Hold the first and last key outside them (Blender's default, stated: the bake's rule).
+    curve.extrapolation = "CONSTANT"
     curve.update()
     return curve
 
@@ -137,7 +147,7 @@ def _clear_mesh(obj):
     return removed
 
 
-def _write_mesh(obj, frames, captured, step):
+def _write_mesh(obj, frames, captured, step, plan=None):
     if obj.data.shape_keys is None:
         basis = obj.shape_key_add(name="Basis", from_mix=False)
         # The reference key is the rest shape, so a baked key shows exactly its positions.
@@ -145,11 +155,16 @@ def _write_mesh(obj, frames, captured, step):
         obj.data.shape_keys[MARK] = True
     key = obj.data.shape_keys
     bag = _channelbag(key, "KEY", f"{obj.name} Shape Deform Bake")
-    for frame, flat in zip(frames, captured):
+    for i, (frame, flat) in enumerate(zip(frames, captured)):
         block = obj.shape_key_add(name=key_name(frame), from_mix=False)
         block.data.foreach_set("co", flat)
         path = f'key_blocks["{bpy.utils.escape_identifier(block.name)}"].value'
-        _add_fcurve(bag, path, 0, [frame - step, frame, frame + step], [0.0, 1.0, 0.0])
+        # Faded in from the frame before and out to the frame after; the first key has no
+        # fade-in and the last no fade-out, so they hold (constant extrapolation) outside the
+        # range, as every kind does.
+        keys = ([(frames[i - 1], 0.0)] if i > 0 else []) + [(frame, 1.0)] + \
+            ([(frames[i + 1], 0.0)] if i + 1 < len(frames) else [])
+        _add_fcurve(bag, path, 0, *zip(*keys))
 
 
 def _clear_curve(obj):
@@ -162,7 +177,7 @@ def _clear_curve(obj):
     return len(baked)
 
 
-def _write_curve(obj, frames, captured, step):
+def _write_curve(obj, frames, captured, step, plan=None):
     bag = _channelbag(obj.data, "CURVE", f"{obj.name} Shape Deform Bake")
     frames = np.asarray(frames, dtype=np.float32)
     for c, (path, width, points, prop) in enumerate(_curve_channels(obj.data)):
@@ -172,25 +187,28 @@ def _write_curve(obj, frames, captured, step):
                 _add_fcurve(bag, f"{path}[{i}].{prop}", axis, frames, values[:, i, axis])
 
 
-def _bound_drawings(obj):
-    """(layer, frame number) of each drawing the rig deforms, in the order of its points."""
-    settings = obj.shapedeform
-    names = settings["gp_layers"].split("\n")
-    return [(obj.data.layers.get(name), int(number)) for name, number in zip(names, settings["gp_frames"])]
+def _made_frames(obj):
+    """{layer name: frame numbers} of the GP keyframes earlier bakes made that a clear removes.
+
+    Never a drawing the rig is bound to: a file saved before Unbind cleared bakes can list one
+    (bake, unbind, bind on a baked frame), and removing it would destroy the rig's own drawing.
+    """
+    made = obj.shapedeform.get(GP_FRAMES)
+    made = made.to_dict() if made is not None else {}
+    bound = set(grease_pencil.bound_frames(obj))
+    return {name: {int(n) for n in numbers if (name, int(n)) not in bound} for name, numbers in made.items()}
 
 
 def _clear_grease_pencil(obj):
-    made = obj.shapedeform.get(GP_FRAMES)
     removed = 0
-    for name, numbers in (made.to_dict() if made is not None else {}).items():
+    for name, numbers in _made_frames(obj).items():
         layer = obj.data.layers.get(name)
         if layer is None:
             continue
         existing = {f.frame_number for f in layer.frames}
-        for number in numbers:
-            if number in existing:
-                layer.frames.remove(number)
-                removed += 1
+        for number in numbers & existing:
+            layer.frames.remove(number)
+            removed += 1
     obj.shapedeform.pop(GP_FRAMES, None)
     return removed
 
@@ -200,34 +218,70 @@ def _set_positions(drawing, flat):
     drawing.tag_positions_changed()
 
 
-def _write_grease_pencil(obj, frames, captured, step):
-    made = {}
-    start = 0
-    for layer, bound in _bound_drawings(obj):
-        frame_of = {f.frame_number: f for f in layer.frames}
-        count = len(frame_of[bound].drawing.attributes["position"].data)
-        made[layer.name] = []
-        for frame_number, points in zip(frames, captured):
-            flat = points[start:start + count]
-            if frame_number == bound:
-                # The rig's own drawing is keyed here: it shows this frame's pose (the live
-                # rig leaves a baked object alone, so it stays).
-                _set_positions(frame_of[bound].drawing, flat)
-            elif frame_number not in frame_of:
-                new = layer.frames.copy(bound, frame_number, instance_drawing=False)
-                drawing = new.drawing
-                if REST_ATTRIBUTE in drawing.attributes:  # the copy needs no rest of its own
-                    drawing.attributes.remove(drawing.attributes[REST_ATTRIBUTE])
-                _set_positions(drawing, flat)
-                made[layer.name].append(frame_number)
-            # else: the animator drew a keyframe of their own here; it is not the rig's, keep it.
+def _plan_grease_pencil(obj, frames, captured):
+    """Each rigged layer's (name, bound frame, first point, point count, frames it keeps).
+
+    Looked up before the clear, from what the clear leaves, so a drawing that is missing stops
+    the bake before anything was removed.
+    """
+    made = _made_frames(obj)
+    numbers = np.asarray(frames)
+    plan, start = [], 0
+    for name, bound in grease_pencil.bound_frames(obj):
+        drawing = grease_pencil.drawing_at(obj, name, bound)
+        if drawing is None:
+            raise RigError(f"'{obj.name}' lost the drawing of layer '{name}' at frame {bound}; unbind it")
+        count = len(drawing.attributes["position"].data)
+        # The animator's own keyframes (not made by a bake) are not the rig's: they stay, and
+        # the rig's drawing shows from its own frame up to the next of them. Only there does the
+        # bake add drawings: never before the layer's first keyframe, never over theirs.
+        kept = {f.frame_number for f in obj.data.layers[name].frames} - made.get(name, set())
+        until = min((n for n in kept if n > bound), default=None)
+        shown = np.flatnonzero((numbers > bound) & ((numbers < until) if until is not None else True))
+        # The rig's drawing itself holds the nearest baked frame at or before its own (the
+        # first baked frame when the range starts after it), as every baked keyframe holds.
+        hold = max(int(np.searchsorted(numbers, bound, side="right")) - 1, 0)
+        plan.append((name, bound, start, count, hold, shown))
         start += count
-    obj.shapedeform[GP_FRAMES] = {name: numbers for name, numbers in made.items()}
+    if any(len(points) != start for points in captured):
+        raise RigError(f"'{obj.name}' changed its strokes during the bake")
+    return plan
+
+
+def _write_grease_pencil(obj, frames, captured, step, plan):
+    made = {}
+    for name, bound, start, count, hold, shown in plan:
+        layer = obj.data.layers[name]
+        # The live rig leaves a baked object alone, so the rig's drawing keeps this pose.
+        _set_positions(grease_pencil.drawing_at(obj, name, bound), captured[hold][start:start + count])
+        made[name] = []
+        for i in shown:
+            new = layer.frames.copy(bound, frames[i], instance_drawing=False)
+            drawing = new.drawing  # at once: adding frames can move the others in memory
+            if REST_ATTRIBUTE in drawing.attributes:  # the copy needs no rest of its own
+                drawing.attributes.remove(drawing.attributes[REST_ATTRIBUTE])
+            _set_positions(drawing, captured[i][start:start + count])
+            made[name].append(int(frames[i]))
+    obj.shapedeform[GP_FRAMES] = made
     obj.data.update_tag()
 
 
-_WRITE = {"MESH": (_clear_mesh, _write_mesh), "IMAGE": (_clear_mesh, _write_mesh),
-          "CURVE": (_clear_curve, _write_curve), "GREASEPENCIL": (_clear_grease_pencil, _write_grease_pencil)}
+def _plan_mesh(obj, frames, captured):
+    if any(len(flat) != 3 * len(obj.data.vertices) for flat in captured):
+        raise RigError(f"'{obj.name}' changed its vertex count during the bake")
+
+
+def _plan_curve(obj, frames, captured):
+    sizes = [len(points) * width for _, width, points, _ in _curve_channels(obj.data)]
+    if any([len(a) for a in arrays] != sizes for arrays in captured):
+        raise RigError(f"'{obj.name}' changed its control points during the bake")
+
+
+# Per kind: clear the previous bake; plan the write (RigError when it cannot be done, nothing
+# changed yet); write.
+_WRITE = {"MESH": (_clear_mesh, _plan_mesh, _write_mesh), "IMAGE": (_clear_mesh, _plan_mesh, _write_mesh),
+          "CURVE": (_clear_curve, _plan_curve, _write_curve),
+          "GREASEPENCIL": (_clear_grease_pencil, _plan_grease_pencil, _write_grease_pencil)}
 
 
 def is_baked(obj):
@@ -285,7 +339,8 @@ class Bake:
             if not settings.is_bound:
                 raise RigError(f"'{obj.name}' is not bound: nothing to bake")
             if settings.kind not in _WRITE:
-                raise RigError(f"'{obj.name}' is a {settings.kind.lower()} rig, which cannot be baked yet")
+                raise RigError(f"'{obj.name}' is {with_article(settings.kind.lower() or 'unknown')} rig, "
+                               "which cannot be baked yet")
             if not any(item.object is not None for item in settings.handles):
                 raise RigError(f"'{obj.name}' has no handles: nothing moves, nothing to bake")
         self.frames = list(frames)
@@ -326,12 +381,24 @@ class Bake:
         self._restore_frame()
 
     def finish(self):
-        """Replace each object's previous bake with this one; returns the objects baked."""
+        """Replace each object's previous bake with this one; returns the objects baked.
+
+        Every object's write is planned (and refused) before any previous bake is cleared, so
+        a bake that cannot be written changes nothing.
+
+        Raises
+        ------
+        RigError
+            An object cannot take the bake (e.g. its grease-pencil drawing is gone); nothing
+            was changed (call :meth:`abort`).
+        """
         self._restore_frame()
-        for obj in self.objects:
-            clear_bake, write = _WRITE[obj.shapedeform.kind]
+        plans = [_WRITE[obj.shapedeform.kind][1](obj, self.frames, self.captured[obj.name])
+                 for obj in self.objects]
+        for obj, plan in zip(self.objects, plans):
+            clear_bake, _, write = _WRITE[obj.shapedeform.kind]
             clear_bake(obj)
-            write(obj, self.frames, self.captured[obj.name], self.step_size)
+            write(obj, self.frames, self.captured[obj.name], self.step_size, plan)
             obj.shapedeform[BAKED] = [self.frames[0], self.frames[-1], self.step_size]
         self.captured.clear()
         self._restore_frame()  # show the baked result at the current frame
@@ -378,10 +445,10 @@ def bake_objects(objects, frame_start, frame_end, step=1, *, scene=None, progres
             if not finished and cancelled is not None and cancelled():
                 baker.abort()
                 return None
+        return baker.finish()
     except BaseException:
         baker.abort()
         raise
-    return baker.finish()
 
 
 # -- operator ---------------------------------------------------------------------------------

@@ -87,8 +87,22 @@ def add(obj, location, depsgraph=None):
     return empty
 
 
+def owns(obj, empty):
+    """Whether ``empty`` is a handle made for ``obj``'s own rig.
+
+    Every handle Empty names its rig (``empty.shapedeform.rig``, set by :func:`add`). A
+    duplicate of a rigged object (Shift+D without its handles) copies the handle list, which
+    then points at the original's Empties: those belong to the original, not to the copy.
+    """
+    return empty is not None and empty.shapedeform.rig == obj.original
+
+
 def remove(obj, empties):
-    """Remove the handles whose Empties are in ``empties``; returns how many were removed."""
+    """Drop the handles whose Empties are in ``empties``; returns how many were removed.
+
+    Only Empties ``obj`` owns (:func:`owns`) are deleted; an entry pointing at another rig's
+    handle is only dropped from the list, so unbinding a duplicate never breaks the original.
+    """
     settings = obj.shapedeform
     removed = 0
     for i in reversed(range(len(settings.handles))):
@@ -96,7 +110,8 @@ def remove(obj, empties):
         if empty is None or empty in empties:
             settings.handles.remove(i)
             if empty is not None:
-                bpy.data.objects.remove(empty)
+                if owns(obj, empty):
+                    bpy.data.objects.remove(empty)
                 removed += 1
     settings.active_handle = min(settings.active_handle, max(len(settings.handles) - 1, 0))
     rigs.forget(obj)
@@ -104,16 +119,19 @@ def remove(obj, empties):
 
 
 def remove_all(obj):
-    """Remove every handle of ``obj`` and its handle collection."""
+    """Remove every handle of ``obj`` and its handle collection, when no other rig uses it."""
     settings = obj.shapedeform
     remove(obj, {item.object for item in settings.handles})
     collection = settings.handle_collection
     if collection is not None:
         for leftover in list(collection.objects):
-            if leftover.shapedeform.rig == obj:
+            if owns(obj, leftover):
                 bpy.data.objects.remove(leftover)
         settings.handle_collection = None
-        if len(collection.objects) == 0 and len(collection.children) == 0:
+        # A duplicate's pointer may name the original's collection: keep a collection that
+        # still holds anything or that another object's rig still puts its handles in.
+        shared = any(o.shapedeform.handle_collection == collection for o in bpy.data.objects)
+        if len(collection.objects) == 0 and len(collection.children) == 0 and not shared:
             bpy.data.collections.remove(collection)
 
 

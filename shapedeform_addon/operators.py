@@ -33,7 +33,7 @@ class SHAPEDEFORM_OT_bind(bpy.types.Operator):
 
 
 class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
-    """Give back the rest shape exactly and remove the rig and its handles"""
+    """Give back the rest shape exactly and remove the rig, its handles and its bake"""
 
     bl_idname = "shapedeform.unbind"
     bl_label = "Unbind"
@@ -46,7 +46,13 @@ class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
             return {"CANCELLED"}
         if obj.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")
-        rig.unbind(obj)
+        other = rig.shares_data(obj)
+        lost = rig.unbind(obj)
+        if lost:
+            self.report({"WARNING"}, f"Unbound '{obj.name}', but could not give back {'; '.join(lost)}")
+        elif other is not None:
+            self.report({"INFO"}, f"Unbound '{obj.name}'; its data is shared with '{other.name}', "
+                                  "whose rig keeps deforming it")
         return {"FINISHED"}
 
 

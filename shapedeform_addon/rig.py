@@ -235,21 +235,62 @@ def bind(obj):
 
 
 def unbind(obj):
-    """Give back the rest shape exactly and remove everything the rig added (handles too)."""
-    from . import handles
+    """Give back the rest shape exactly and remove everything the rig added: bake, data, handles.
+
+    The bake goes too (as *Clear Bake* removes it): left behind it would keep playing the
+    deformation over the object's own shape, and its mark would keep a new rig on the object
+    from ever posing it.
+
+    A broken rig (a grease-pencil keyframe it deforms deleted, its rest data gone) is unbound
+    too: what can be given back is, and the rest is returned to be told to the user. The
+    handles go last, once the rest shape is back, so a failure never leaves a rig without them.
+
+    A linked duplicate (its data shared with another bound object) gives up only its own rig:
+    the shared data keeps the other rig's rest data and bake.
+
+    Returns
+    -------
+    list of str
+        What could not be given back, as phrases for a message (empty when all was).
+
+    Raises
+    ------
+    RigError
+        ``obj`` is not bound; nothing was changed.
+    """
+    from . import bake, handles
 
     settings = obj.shapedeform
     if not settings.is_bound:
         raise RigError(f"'{obj.name}' is not bound")
-    handles.remove_all(obj)
-    sources.module_for(obj).restore(obj)
+    source = sources.module_for(obj)
+    if shares_data(obj) is None:
+        # Before the restore: the bake's keys (a mesh's shape keys, a curve's F-curves) sit on
+        # the data the restore writes.
+        bake.clear(obj)
+        lost = source.restore(obj)
+    else:
+        # A linked duplicate (Alt+D): the data is also the other object's, whose rig still
+        # deforms and bakes it; its rest data and bake stay, only this object's rig goes.
+        for key in (bake.BAKED, bake.GP_FRAMES, "gp_layers", "gp_frames"):
+            settings.pop(key, None)
+        settings.original_data = None
+        lost = []
     for key in _STORED_KEYS:
         if key in settings:
             del settings[key]
     settings.is_bound = False
     settings.kind = ""
     settings.status = ""
+    handles.remove_all(obj)
     forget(obj)
+    return lost
+
+
+def shares_data(obj):
+    """Another bound object whose data is ``obj``'s (a linked duplicate), or None."""
+    return next((o for o in bpy.data.objects
+                 if o != obj and o.data is not None and o.data == obj.data and o.shapedeform.is_bound), None)
 
 
 def rigged_object(context):

@@ -10,8 +10,10 @@ Each source module offers the same functions:
     The rest points saved at bind time, in the order :func:`write` takes.
 ``write(obj, points)``
     Write (p, 3) float32 points back, one ``foreach_set`` per array.
-``restore(obj)``
-    Write the rest points back exactly and delete the saved rest data.
+``restore(obj) -> list of str``
+    Write the rest points back exactly and delete the saved rest data. Never fails for missing
+    data, so a broken rig can always be unbound: it gives back what it can and returns what it
+    could not, as phrases for a message ("the drawing of layer 'Ink' at frame 3 (...)").
 """
 
 from dataclasses import dataclass, field
@@ -22,6 +24,21 @@ import numpy as np
 
 class RigError(Exception):
     """An object cannot be rigged (or its rig cannot run); the message is for the user."""
+
+
+def with_article(noun):
+    """``noun`` after "a" or "an", for messages ("an empty", "a camera").
+
+    By its first letter: the nouns these messages use (Blender's object types and the rig kinds)
+    have no silent or long-vowel exceptions such as "hour" or "unit".
+    """
+    return f"{'an' if noun[:1].lower() in 'aeiou' else 'a'} {noun}"
+
+
+def type_name(obj):
+    """The object's type as Blender's interface names it, lower case ("empty", "text", "light probe")."""
+    items = type(obj).bl_rna.properties["type"].enum_items
+    return (items[obj.type].name if obj.type in items else obj.type.replace("_", " ")).lower()
 
 
 @dataclass
@@ -65,5 +82,5 @@ def kind_of(obj):
         return "IMAGE" if image_plane.is_image_plane(obj) else "MESH"
     if obj.type in {"CURVE", "GREASEPENCIL"}:
         return obj.type
-    raise RigError(f"'{obj.name}' is a {obj.type.lower()} object: Shape Deform rigs meshes, curves, "
+    raise RigError(f"'{obj.name}' is {with_article(type_name(obj))} object: Shape Deform rigs meshes, curves, "
                    "grease pencil and image planes")

@@ -117,9 +117,15 @@ def write(obj, values):
 def restore(obj):
     values = obj.data.get(REST_PROPERTY)
     if values is None:
-        return
-    write(obj, np.asarray(values, dtype=np.float64).astype(np.float32).reshape(-1, 3))
+        return [f"the rest shape (property {REST_PROPERTY} is gone; the points stay where they are)"]
+    rest = np.asarray(values, dtype=np.float64).reshape(-1, 3)
+    if len(rest) != len(points(obj.data)):
+        # Points were added or deleted since binding: which rest point is whose is unknown.
+        return ["the rest shape (control points were added or deleted since binding; "
+                "they stay where they are)"]
+    write(obj, rest.astype(np.float32))
     del obj.data[REST_PROPERTY]
+    return []
 
 
 def selected(obj):

@@ -29,17 +29,27 @@ def _chosen_layers(obj, settings):
     return [layers[n] for n in names] if names else list(layers)
 
 
-def _bound_drawings(obj):
+def bound_frames(obj):
+    """(layer name, frame number) of each drawing the rig deforms, as bound (none when unbound)."""
     settings = obj.shapedeform
-    names = settings["gp_layers"].split("\n")
-    numbers = list(settings["gp_frames"])
+    names = settings.get("gp_layers", "").split("\n")
+    return [(name, int(number)) for name, number in zip(names, settings.get("gp_frames", []))]
+
+
+def drawing_at(obj, name, number):
+    """The drawing of layer ``name`` keyed at frame ``number``, or None when it is gone."""
+    layer = obj.data.layers.get(name)
+    frame = next((f for f in layer.frames if f.frame_number == number), None) if layer else None
+    return frame.drawing if frame is not None else None
+
+
+def _bound_drawings(obj):
     drawings = []
-    for name, number in zip(names, numbers):
-        layer = obj.data.layers.get(name)
-        frame = next((f for f in layer.frames if f.frame_number == number), None) if layer else None
-        if frame is None:
+    for name, number in bound_frames(obj):
+        drawing = drawing_at(obj, name, number)
+        if drawing is None:
             raise RigError(f"'{obj.name}' lost the drawing of layer '{name}' at frame {number}; unbind it")
-        drawings.append(frame.drawing)
+        drawings.append(drawing)
     return drawings
 
 
@@ -124,17 +134,25 @@ def write(obj, points):
 
 
 def restore(obj):
-    for drawing in _bound_drawings(obj):
-        attribute = drawing.attributes.get(REST_ATTRIBUTE)
+    # Every drawing's rest is read before any is written, so what is restored does not depend
+    # on where in the list a lost drawing is.
+    found, lost = [], []
+    for name, number in bound_frames(obj):
+        drawing = drawing_at(obj, name, number)
+        attribute = drawing.attributes.get(REST_ATTRIBUTE) if drawing is not None else None
         if attribute is None:
+            why = "its keyframe is gone" if drawing is None else f"its {REST_ATTRIBUTE} attribute is gone"
+            lost.append(f"the drawing of layer '{name}' at frame {number} ({why})")
             continue
-        rest = read_vectors(attribute, len(attribute.data))
-        drawing.attributes.remove(attribute)
+        found.append((drawing, read_vectors(attribute, len(attribute.data))))
+    for drawing, rest in found:
+        drawing.attributes.remove(drawing.attributes[REST_ATTRIBUTE])
         drawing.attributes["position"].data.foreach_set("vector", rest.ravel())
         drawing.tag_positions_changed()
     for key in ("gp_layers", "gp_frames"):
         obj.shapedeform.pop(key, None)
     obj.data.update_tag()
+    return lost
 
 
 def selected(obj):

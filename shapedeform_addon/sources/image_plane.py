@@ -83,10 +83,10 @@ def prepare(obj, settings):
 def restore(obj):
     original = obj.shapedeform.original_data
     if original is None:
-        mesh_source.restore(obj)
-        return
+        return mesh_source.restore(obj)
     cutout = obj.data
     obj.data = original
     obj.shapedeform.original_data = None
     if cutout.users == 0:
         bpy.data.meshes.remove(cutout)
+    return []

@@ -102,11 +102,12 @@ def write(obj, points):
 def restore(obj):
     mesh = obj.data
     attribute = mesh.attributes.get(REST_ATTRIBUTE)
-    if attribute is None:
-        return
+    if attribute is None or attribute.domain != "POINT" or attribute.data_type != "FLOAT_VECTOR":
+        return [f"the rest shape (attribute {REST_ATTRIBUTE} is gone or changed; the vertices stay where they are)"]
     rest = read_vectors(attribute, len(mesh.vertices))
     mesh.attributes.remove(attribute)
     write(obj, rest)
+    return []
 
 
 def selected(obj):

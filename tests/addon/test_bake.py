@@ -1,6 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Baking: every baked frame plays the live pose with the extension disabled; rebake replaces;
-the command line bakes a saved file; animated poses do not depend on the frame shown before."""
+the command line bakes a saved file; animated poses do not depend on the frame shown before;
+a rebake keeps the rig's drawing and a bake that cannot be written changes nothing; outside
+the range every kind holds the nearest baked frame; the documented Python entry point imports."""
 
 import addon_utils
 import bpy
@@ -238,3 +240,158 @@ def test_image_plane_bake_plays_without_the_extension(addon, tmp_path):
     assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 6) == [obj]
     assert len(obj.data.shape_keys.key_blocks) == 1 + len(FRAMES)
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
+
+
+# -- issue 15, defect 11: a rebake after unbind and bind on a baked frame
+
+def monkey():
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    rest = drawing_points(obj, evaluated=False)
+    rig(obj, rest[np.argmin(rest[:, 2])], rest[np.argmax(rest[:, 2])], (0.3, 0.0, 0.0))
+    return obj
+
+
+def frame_numbers(obj):
+    return {layer.name: sorted(f.frame_number for f in layer.frames) for layer in obj.data.layers}
+
+
+def test_bake_unbind_bind_on_a_baked_frame_and_bake_again(addon):
+    obj = monkey()
+    bake = addon.shapedeform_addon.bake
+    bake.bake_objects([obj], 1, 6)
+    scene = bpy.context.scene
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    scene.frame_set(3)  # a frame the bake made a drawing on
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    rest = drawing_points(obj, evaluated=False)
+    checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 2])]))
+    animate(checks.add_handle(obj, checks.world(obj, rest[np.argmax(rest[:, 2])])), (0.0, 0.0, 0.3))
+    expected = live(lambda: drawing_points(obj))
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    assert all(numbers == list(FRAMES) for numbers in frame_numbers(obj).values())
+    assert_plays_without_extension(lambda: drawing_points(obj), expected)
+
+
+def test_a_bake_never_removes_the_drawing_its_rig_is_bound_to(addon):
+    """A file saved before unbind cleared bakes can list the bound drawing as made by a bake."""
+    obj = monkey()
+    expected = live(lambda: drawing_points(obj))
+    bake = addon.shapedeform_addon.bake
+    bake.bake_objects([obj], 1, 6)
+    obj.shapedeform[bake.GP_FRAMES] = {layer.name: list(FRAMES) for layer in obj.data.layers}
+    assert bake.bake_objects([obj], 1, 6) == [obj]
+    assert all(numbers == list(FRAMES) for numbers in frame_numbers(obj).values())
+    assert_plays_without_extension(lambda: drawing_points(obj), expected)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert all(numbers == [1] for numbers in frame_numbers(obj).values())
+
+
+def test_a_bake_that_cannot_be_written_changes_nothing(addon):
+    """Every object's write is checked before any previous bake is replaced."""
+    mesh = grid()
+    rig(mesh, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    pencil = monkey()
+    bake = addon.shapedeform_addon.bake
+    bake.bake_objects([mesh, pencil], 1, 6)
+    keys = [block.name for block in mesh.data.shape_keys.key_blocks]
+    before = frame_numbers(pencil)
+
+    def lose_the_drawing(done, total):  # as a script or handler might, once every frame is posed
+        if done == total:
+            pencil.data.layers["Fills"].frames.remove(1)
+
+    with pytest.raises(addon.shapedeform_addon.sources.RigError, match="lost the drawing of layer 'Fills'"):
+        bake.bake_objects([mesh, pencil], 2, 4, progress=lose_the_drawing)
+    assert [block.name for block in mesh.data.shape_keys.key_blocks] == keys
+    assert list(mesh.shapedeform["baked"]) == list(pencil.shapedeform["baked"]) == [1, 6, 1]
+    assert frame_numbers(pencil) == {"Fills": before["Fills"][1:], "Lines": before["Lines"]}
+
+
+# -- issue 15, defect 12: one rule outside the baked range
+
+def rigged_mesh():
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    return obj, lambda: checks.evaluated_mesh_points(obj)
+
+
+def rigged_curve():
+    obj = text_curve("I")
+    rest = np.concatenate([p[:, :3] for p in curve_points(obj)])
+    rig(obj, rest[np.argmin(rest[:, 1])], rest[np.argmax(rest[:, 1])], (0.4, 0.0, 0.0))
+    return obj, lambda: np.concatenate(curve_points(obj.evaluated_get(bpy.context.evaluated_depsgraph_get())))
+
+
+def rigged_grease_pencil():
+    obj = monkey()
+    return obj, lambda: drawing_points(obj)
+
+
+@pytest.mark.parametrize("make", [rigged_mesh, rigged_curve, rigged_grease_pencil])
+def test_outside_the_baked_range_every_kind_holds_the_nearest_baked_frame(addon, make):
+    obj, read = make()
+    expected = live(read)
+    assert np.abs(expected[4] - expected[2]).max() > 0.05
+    addon.shapedeform_addon.bake.bake_objects([obj], 2, 4)
+    addon_utils.disable(ADDON_MODULE, default_set=True)  # what plays is the bake alone
+    try:
+        scene = bpy.context.scene
+        # (A grease-pencil layer shows nothing before its first keyframe, 1: see the next test.)
+        before = [1] if obj.type == "GREASEPENCIL" else [1, 0, -5]
+        for frame, shown in [(f, 2) for f in before] + [(5, 4), (9, 4), (3, 3)]:
+            scene.frame_set(frame)
+            np.testing.assert_allclose(read(), expected[shown], atol=1e-5, err_msg=f"frame {frame}")
+    finally:
+        addon_utils.enable(ADDON_MODULE, default_set=True)
+
+
+def test_a_mesh_bake_with_a_step_has_no_fade_outside_its_range(addon):
+    """Every other frame baked: the first and last keys hold, with no half fade before or after."""
+    obj, read = rigged_mesh()
+    expected = live(read)
+    addon.shapedeform_addon.bake.bake_objects([obj], 2, 6, step=2)
+    scene = bpy.context.scene
+    for frame, shown in [(1, 2), (0, 2), (7, 6), (8, 6)]:
+        scene.frame_set(frame)
+        np.testing.assert_allclose(read(), expected[shown], atol=1e-5, err_msg=f"frame {frame}")
+
+
+def test_a_grease_pencil_bake_adds_drawings_only_where_the_rigged_drawing_shows(addon):
+    obj = monkey()
+    lines = obj.data.layers["Lines"]
+    lines.frames.copy(1, 5)  # the animator's own drawing from frame 5 on
+    mine = drawing_points(obj, evaluated=False)
+    addon.shapedeform_addon.bake.bake_objects([obj], -2, 7)
+    # Nothing before the first keyframe (frame 1): no drawing appears where there was none;
+    # on Lines nothing over the animator's keyframe 5 and after it.
+    assert frame_numbers(obj) == {"Fills": list(range(1, 8)), "Lines": [1, 2, 3, 4, 5]}
+    bpy.context.scene.frame_set(0)
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    assert all(layer.current_frame() is None for layer in evaluated.layers)
+    bpy.context.scene.frame_set(6)
+    drawing = lines.current_frame().drawing
+    assert lines.current_frame().frame_number == 5
+    flat = np.empty(len(drawing.attributes["position"].data) * 3, np.float32)
+    drawing.attributes["position"].data.foreach_get("vector", flat)
+    fills = len(obj.data.layers["Fills"].frames[0].drawing.attributes["position"].data)
+    assert flat.tobytes() == mine[fills:].tobytes()  # the animator's drawing, untouched
+
+
+def test_the_documented_python_entry_point_imports(addon):
+    """README names the function a script calls to bake; that name must import as written."""
+    import importlib
+    import os
+    import re
+
+    from conftest import ROOT
+
+    with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as readme:
+        text = readme.read()
+    paths = re.findall(r"`([\w.]+)\.bake_objects\(", text)
+    assert paths, "README does not show how to call bake_objects from Python"
+    for module_path in paths:
+        function = getattr(importlib.import_module(module_path), "bake_objects")
+        assert function is addon.shapedeform_addon.bake.bake_objects

@@ -175,13 +175,19 @@ def test_add_handles_at_selected_vertices(addon):
 @pytest.mark.parametrize("make, message", [
     (lambda: bpy.data.meshes.new("Empty"), "no vertices"),
     ("cube", "not planar"),
-    ("camera", "camera object"),
+    ("camera", "is a camera object"),
+    ("empty", "is an empty object"),  # issue 15, defect 13: not "a empty"
+    ("armature", "is an armature object"),
 ])
 def test_bad_input_is_refused_and_changes_nothing(addon, make, message):
     if make == "cube":
         bpy.ops.mesh.primitive_cube_add()
     elif make == "camera":
         bpy.ops.object.camera_add()
+    elif make == "empty":
+        bpy.ops.object.empty_add()
+    elif make == "armature":
+        bpy.ops.object.armature_add()
     else:
         obj = bpy.data.objects.new("Empty mesh", make())
         bpy.context.scene.collection.objects.link(obj)
