@@ -386,9 +386,8 @@ def test_the_documented_python_entry_point_imports(addon):
     import os
     import re
 
-    from conftest import ROOT
-
-    with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as readme:
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    with open(os.path.join(root, "README.md"), encoding="utf-8") as readme:
         text = readme.read()
     paths = re.findall(r"`([\w.]+)\.bake_objects\(", text)
     assert paths, "README does not show how to call bake_objects from Python"
