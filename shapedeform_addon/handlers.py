@@ -1,5 +1,11 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""App handlers that keep rigs live: handle moves, frame changes, file loads and undo."""
+"""App handlers that keep rigs live: handle moves, frame changes, file loads and undo.
+
+While the animator works, solves have the Viewport iteration budget; one that stops short of
+converging leaves a pose a render (Render budget) would not give. A one-shot timer then solves
+those rigs again with the Render budget once the updates pause, so what stays on screen is
+what renders, as Blender's viewport refines its samples when the view stops changing.
+"""
 
 import bpy
 from bpy.app.handlers import persistent
@@ -38,6 +44,33 @@ def _pose(objects, depsgraph):
         depsgraph.update()  # so what is evaluated now shows the new pose, not the previous one
     finally:
         _busy = False
+    if not rig.final_quality() and rig.unsettled(bpy.context.scene):
+        if bpy.app.timers.is_registered(refine):
+            bpy.app.timers.unregister(refine)  # still moving: wait for the next pause
+        bpy.app.timers.register(refine, first_interval=REFINE_AFTER)
+
+
+# Seconds without an update before unsettled poses are solved with the Render budget.
+REFINE_AFTER = 0.3
+
+
+def refine():
+    """Solve the current scene's unsettled rigs again with the Render budget (a timer)."""
+    global _busy
+    scene = bpy.context.scene
+    objects = [o for o in rig.unsettled(scene) if o.mode != "EDIT" and "baked" not in o.shapedeform]
+    if not objects:
+        return None
+    _busy = True
+    try:
+        for obj in objects:
+            message = rig.pose_safely(obj, final=True)
+            if message:
+                _report(message)
+        bpy.context.view_layer.update()
+    finally:
+        _busy = False
+    return None  # once
 
 
 @persistent
@@ -86,6 +119,8 @@ def register():
 
 
 def unregister():
+    if bpy.app.timers.is_registered(refine):
+        bpy.app.timers.unregister(refine)
     for name, function in _HANDLERS:
         functions = getattr(bpy.app.handlers, name)
         if function in functions:

@@ -78,8 +78,10 @@ class Rig:
         except ValueError as err:
             raise RigError(f"'{obj.name}': {err}") from None
         self.signature = signature(obj)
-        # Graph positions of the last pose written (rest until posed).
+        # Graph positions of the last pose written (rest until posed), and whether that pose is
+        # what a render gives: converged, or solved with the Render budget.
         self.posed = self.graph.points.copy()
+        self.settled = True
 
     def frames(self, obj, depsgraph=None):
         """Each handle's 2D frame in the shape's plane, (h, 3, 3), from evaluated transforms."""
@@ -91,11 +93,15 @@ class Rig:
         return np.array([frame_2d(self.plane, to_local @ world(h)) for h in self.handle_objects]).reshape(-1, 3, 3)
 
     def solve(self, frames, iterations):
-        """Graph positions (n, 2) for handle frames (h, 3, 3)."""
+        """Graph positions (n, 2) for handle frames (h, 3, 3); ``settled`` tells whether the
+        solve converged (the pose is then the one a render gives)."""
         if self.deformer is None:
+            self.settled = True
             return self.graph.points.copy()
         targets = region_targets(frames, self.offsets, self.owners)
-        return self.deformer.solve(targets, max_iterations=iterations).positions
+        solution = self.deformer.solve(targets, max_iterations=iterations)
+        self.settled = solution.converged
+        return solution.positions
 
     def points(self, positions):
         """The source's points, (p, 3) float32, for graph ``positions`` (n, 2)."""
@@ -166,10 +172,18 @@ def pose(obj, depsgraph=None, final=None):
         raise RigError(f"'{obj.name}': the solve gave non-finite positions; kept the last pose")
     rig.source.write(obj, np.ascontiguousarray(points))
     rig.posed = positions
+    rig.settled = rig.settled or final
     return rig
 
 
-def pose_safely(obj, depsgraph=None):
+def unsettled(scene):
+    """Bound objects of ``scene`` whose shown pose stopped short of what a render gives (a
+    Viewport-budget solve that did not converge)."""
+    return [obj for obj in bound_objects(scene)
+            if not getattr(_cache.get(obj.session_uid), "settled", True)]
+
+
+def pose_safely(obj, depsgraph=None, final=None):
     """:func:`pose`, keeping the last good pose and recording why when it fails.
 
     Returns
@@ -178,7 +192,7 @@ def pose_safely(obj, depsgraph=None):
         Empty when it worked, else the reason (also in ``obj.shapedeform.status``).
     """
     try:
-        pose(obj, depsgraph)
+        pose(obj, depsgraph, final)
         message = ""
     except RigError as err:
         message = str(err)
