@@ -433,6 +433,27 @@ def main(argv=None):
     log(f"wrote {args.out}/benchmarks.md in {elapsed:.0f} s")
 
 
+def _random_drags_section(path):
+    """The summary table of ``benchmarks/random_drags.py``'s page, which claims of convergence and
+    speed rest on: the named drags below show quality beside the peers, not how often solves
+    converge."""
+    lines = ["## The benchmark of record: random drags\n",
+             "Convergence and speed claims rest on seeded random drags over 11 shapes "
+             "(`benchmarks/random_drags.py`), not on the named drags below; its full page, per shape, "
+             "is [random_drags.md](random_drags.md).\n"]
+    if not os.path.exists(path):
+        return "\n".join(lines + ["(Not generated yet: run `benchmarks/random_drags.py --doc docs/random_drags.md`.)\n"])
+    with open(path, encoding="utf-8") as page:
+        text = page.read().splitlines()
+    table = []
+    for line in text:
+        if line.startswith("| size |") or (table and line.startswith("|")):
+            table.append(line)
+        elif table:
+            break
+    return "\n".join(lines + table) + "\n"
+
+
 def write_doc(path, rows, fig3, zero_note, fig4, width, fig5, scale_rows, args, elapsed):
     summary_rows, count = summary(rows)
     cases = []
@@ -450,6 +471,7 @@ def write_doc(path, rows, fig3, zero_note, fig4, width, fig5, scale_rows, args, 
       f"({max(2, args.repeats // 2)} at ~5k points) after one warm-up; with other jobs on the "
       "same two cores they are noisy, so read the ratios (all methods measured in the same run, "
       "one after another on the same input) rather than the last digit.\n")
+    w(_random_drags_section(os.path.join(os.path.dirname(path), "random_drags.md")))
     w("## What is compared\n")
     w("Two shapes, each at about 500 and about 5,000 points: the traced scikit-image horse "
       "(one hole between the tail and the body) and the DejaVu Sans glyph \"B\" (two holes). Every "
