@@ -65,10 +65,7 @@ def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=
     result = Result(v)
     matrix.reset()  # a solve depends on its targets alone, not on the last solve's history
     if area is not None:
-        objective.refresh(v, None)
-        if not area.project(v, matrix.solve):
-            raise ValueError(f"preserve_area: found no pose with the rest area near the start for these "
-                             f"targets (the nearest was {area.area(v) / area.rest - 1.0:.2g} off it)")
+        _project_start(objective, matrix, area, v)
     energy, gradient, pose = objective.evaluate(v)  # gradient: half the true one
     for _ in range(max_iterations):
         step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area)
@@ -98,6 +95,15 @@ def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=
         result.energies.append(energy)
     result.v = v
     return result
+
+
+def _project_start(objective, matrix, area, v):
+    """Move the start ``v`` (in place) onto the area constraint along ``H^-1 J``, with the
+    matrix refreshed at ``v``; ValueError when no pose with the rest area is found near it."""
+    objective.refresh(v, None)
+    if not area.project(v, matrix.solve):
+        raise ValueError(f"preserve_area: found no pose with the rest area near the start for these "
+                         f"targets (the nearest was {area.area(v) / area.rest - 1.0:.2g} off it)")
 
 
 def _newton_step(objective, matrix, v, pose, gradient, area):
@@ -149,10 +155,7 @@ def minimise(objective, preconditioner, v, options, size, max_iterations, tolera
     result = Result(v)
     direction = jacobian = None
     if area is not None:
-        objective.refresh(v, None)
-        if not area.project(v, preconditioner.solve):
-            raise ValueError(f"preserve_area: found no pose with the rest area near the start for these "
-                             f"targets (the nearest was {area.area(v) / area.rest - 1.0:.2g} off it)")
+        _project_start(objective, preconditioner, area, v)
         jacobian = area.jacobian(v)  # kept with direction: both change only with v
         direction = preconditioner.solve(jacobian)
     energy, gradient, pose = objective.evaluate(v)  # gradient: half the true one
