@@ -44,9 +44,9 @@ class Solution:
     converged : bool
         Whether the step fell below the tolerance before ``max_iterations``.
     factorizations : int
-        Numeric refactorisations this solve made of the matrix that follows the pose: the
-        two-grid's coarse Newton matrix by default, the whole Newton matrix with
-        ``newton=True``. The shape's own factor (``A_f^T A_f``) is never refactorised.
+        Refreshes this solve made of the matrix that follows the pose: the whole Newton matrix
+        (numeric refactorisations, one or two each) with Newton's method, the coarse Newton
+        matrix with the two-grid; none with the paper's matrix alone.
     """
 
     positions: np.ndarray
@@ -70,17 +70,14 @@ class Deformer:
     preserve_area : bool
         Keep the total area (islands minus holes) equal to the rest area.
     newton : bool, optional
-        ``None`` (default): L-BFGS with the two-grid preconditioner of :mod:`solver.two_grid`.
-        Its fine factor, ``A_f^T A_f``, is made here and never again, so moving handles only
-        changes right-hand sides of the shape's system; what follows the pose is a Newton
-        matrix on a coarse copy of the shape (a few hundred points), refactorised at most
-        ``options.refreshes`` times per solve (every few iterations more in a solve that runs
-        past ``options.late_refresh_from``). Up to ``options.coarse_start_points`` points a
-        solve starts from the as-similar-as-possible pose; above, from the coarse copy's pose,
-        and above ``options.two_grid_max_points`` it iterates ``A_f^T A_f`` alone. A graph too small to have a
-        coarser copy is its own coarse level (the Newton matrix below).
-        ``True``: projected Newton steps on the whole graph, as many as the refreshes above,
-        each a numeric refactorisation (the symbolic analysis is shared), then L-BFGS.
+        ``None`` (default): up to ``options.newton_max_points`` points, Newton's method
+        (:func:`solver.optimizer.newton`: the Newton matrix refactorised at every iterate, one
+        symbolic analysis per handle set) from the lower-energy of the as-similar-as-possible
+        pose and a solved coarse copy's pose. Above, L-BFGS with the two-grid preconditioner of
+        :mod:`solver.two_grid` (the paper's factor, never refactorised, plus a Newton correction
+        on a coarse copy) from the coarse copy's pose, and above
+        ``options.two_grid_max_points`` with ``A_f^T A_f`` alone.
+        ``True``: Newton's method at any size, from the as-similar-as-possible pose.
         ``False``: the paper's way, L-BFGS on ``A_f^T A_f`` alone from the pose of a coarse
         copy of the shape; cheapest per iteration, slow to turn free limbs.
     prevent_flips : bool
@@ -177,7 +174,9 @@ class Deformer:
             return None
         return copy
 
-    def _start_pose(self, targets, initial):
+    def _start_candidates(self, targets, initial):
+        """Poses (n, 2) a solve may start from, handles on their targets: ``initial``, or one
+        per start strategy (the solve takes the one of lowest energy)."""
         rest = self.graph.points
         if initial is not None:
             positions = np.array(initial, dtype=np.float64)
@@ -212,9 +211,9 @@ class Deformer:
             Stop once the next step would move no point more than ``tolerance * graph.size``.
             ``0.0`` runs exactly ``max_iterations``. Default ``options.tolerance``.
         initial : (n, 2) array_like, optional
-            Warm start. By default the as-similar-as-possible pose for the targets (for large
-            graphs, the pose of a coarse copy of the shape), so the result depends on the
-            targets alone.
+            Warm start. By default the lower-energy of the as-similar-as-possible pose and a
+            solved coarse copy's pose for the targets (see ``newton``), so the result depends on
+            the targets alone.
 
         Returns
         -------
@@ -236,7 +235,7 @@ class Deformer:
         if max_iterations < 0 or tolerance < 0:
             raise ValueError("max_iterations and tolerance must be >= 0")
 
-        candidates = self._start_pose(targets, initial)
+        candidates = self._start_candidates(targets, initial)
         positions = candidates[0]
         if len(self.free) == 0:
             return Solution(positions, 0, [], True)
