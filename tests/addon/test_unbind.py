@@ -105,16 +105,21 @@ def test_unbinding_a_duplicate_leaves_the_original_rig_alone(addon):
     assert {o.name for o in bpy.data.objects} == names | {copy.name}
     assert [item.object for item in original.shapedeform.handles] == [left, right]
     assert collection.name in bpy.data.collections and set(collection.objects) == {left, right}
-    right.location.y += 0.4
-    bpy.context.view_layer.update()
-    assert original.shapedeform.status == ""
-    tip = np.argmin(np.linalg.norm(rest[:, :2] - [1.0, 0.0], axis=1))
-    assert checks.evaluated_mesh_points(original)[tip, 1] == pytest.approx(0.4, abs=1e-5)
+    _assert_still_follows(original, right, rest)
 
     # Unbinding the original afterwards still removes its own handles and collection.
     unbind(original)
     assert {o.name for o in bpy.data.objects} == {original.name, copy.name}
     assert not any("Handles" in c.name for c in bpy.data.collections)
+
+
+def _assert_still_follows(original, handle, rest):
+    """The original's rig is live: moving its right handle up moves the grid's right tip."""
+    handle.location.y += 0.4
+    bpy.context.view_layer.update()
+    assert original.shapedeform.status == ""
+    tip = np.argmin(np.linalg.norm(rest[:, :2] - [1.0, 0.0], axis=1))
+    assert checks.evaluated_mesh_points(original)[tip, 1] == pytest.approx(0.4, abs=1e-5)
 
 
 def test_a_grease_pencil_rig_that_lost_its_drawing_can_be_unbound(addon, capfd):
@@ -170,10 +175,6 @@ def test_unbinding_a_linked_duplicate_leaves_the_shared_data_to_the_original(add
     unbind(copy)
     assert not copy.shapedeform.is_bound and "graph_points" not in copy.shapedeform
     assert "sd_rest" in original.data.attributes
-    right.location.y += 0.4
-    bpy.context.view_layer.update()
-    assert original.shapedeform.status == ""
-    tip = np.argmin(np.linalg.norm(rest[:, :2] - [1.0, 0.0], axis=1))
-    assert checks.evaluated_mesh_points(original)[tip, 1] == pytest.approx(0.4, abs=1e-5)
+    _assert_still_follows(original, right, rest)
     unbind(original)
     assert checks.mesh_points(original).tobytes() == rest.tobytes()
