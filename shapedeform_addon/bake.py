@@ -1,96 +1,40 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Baking: the live deformation turned into ordinary Blender animation.
+"""Baking: the rig's motion turned into ordinary Blender animation, the same for every kind.
 
 A bake poses every frame of a range (the frame's pose depends only on the handles at that
-frame, so the order does not matter), keeps what it computed in memory, and only when every
-frame is done, and every object's write has been checked, replaces the previous bake of each
-object. Cancelling or failing half way therefore changes nothing. What a bake leaves behind
-plays without the extension:
+frame, so the order does not matter), keeps the cage's points in memory, and only when every
+frame is done replaces the previous bake. Cancelling or failing half way therefore changes
+nothing. What it leaves is shape keys on the cage's mesh: the reference key "Basis" holds the
+rest, and each baked frame ``f`` a key ``sd_bake_<f>`` holding that frame's pose, keyed 0 / 1 / 0
+at the frames before, at and after it (linear; the first key has no 0 before it, the last none
+after it). The object's Shape Deform modifier maps its points through the cage whatever moves
+the cage, so a baked file plays and renders with the extension disabled, and every kind of
+object (a grease-pencil drawing the animator adds later too) plays the same bake.
 
-- meshes: the reference key "Basis" holds the rest shape, and each baked frame ``f`` a shape
-  key ``sd_bake_<f>`` holding that frame's positions, keyed 0 / 1 / 0 at ``f - step``, ``f``,
-  ``f + step`` (linear; the first key has no 0 before it, the last none after it); glTF and
-  FBX export them as morph targets.
-- curves: F-curves on every control point's ``co`` (and on Bezier points' ``handle_left`` and
-  ``handle_right``), one key per baked frame.
-- grease pencil: a GP keyframe (its own drawing) per baked frame on every rigged layer, where
-  that layer shows the rig's drawing: from its keyframe up to the animator's next one.
+Outside the baked range the cage holds the nearest baked frame (the first before the range, the
+last after it), as keyed animation holds its first and last key.
 
-One rule outside the baked range, for every kind: the object holds the nearest baked frame (the
-first before the range, the last after it), as keyed animation holds its first and last key.
-A grease-pencil layer shows nothing before its first keyframe, and a bake adds no drawing
-there: the rig's own drawing holds the first baked frame from its keyframe on.
-
-Baking again removes what the previous bake made (recognised by name, by the
-``shapedeform_bake`` marks and by the GP keyframes listed on the object, never a drawing a rig
-is bound to) before writing, so it replaces and never duplicates.
-
-A baked object is marked (``obj.shapedeform["baked"] = [start, end, step]``) and the live rig
-leaves it alone: the bake is what plays (a mesh with shape keys would not show the rig's writes
-anyway, and a grease-pencil rig's own drawing must keep its baked frame's pose).
-:func:`clear` removes the bake and the mark, and the rig is live again.
+A baked rig is marked (``obj.shapedeform["baked"] = [start, end, step]``) and the live rig
+leaves its cage alone: the bake is what plays. :func:`clear` removes the bake and the mark, and
+the rig is live again.
 """
 
 import bpy
 import numpy as np
 from bpy.props import IntProperty
 
-from . import compat, rig
-from .sources import RigError, grease_pencil, with_article
+from . import compat, rig, rig_format
+from .errors import RigError
 
 PREFIX = "sd_bake_"
 MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
-BAKED = "baked"  # on obj.shapedeform: [start, end, step] of the bake; the live rig then rests
-GP_FRAMES = "baked_gp_frames"  # on obj.shapedeform: {layer name: [GP keyframes the bake made]}
-REST_ATTRIBUTE = "sd_rest"
+BAKED = rig_format.BAKED
 _LINEAR = 1  # Keyframe.interpolation 'LINEAR' as foreach_set takes it (the enum's value)
 
 
 def key_name(frame):
     return f"{PREFIX}{frame:04d}"
 
-
-# -- capturing a frame ------------------------------------------------------------------------
-
-def _capture_mesh(obj, posed):
-    mesh = obj.data
-    flat = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-    mesh.attributes["position"].data.foreach_get("vector", flat)
-    return flat
-
-
-def _curve_channels(curve):
-    """(data path, width, collection, property) of every animatable point array of a curve."""
-    channels = []
-    for s, spline in enumerate(curve.splines):
-        if spline.type == "BEZIER":
-            for prop in ("co", "handle_left", "handle_right"):
-                channels.append((f"splines[{s}].bezier_points", 3, spline.bezier_points, prop))
-        else:
-            channels.append((f"splines[{s}].points", 4, spline.points, "co"))
-    return channels
-
-
-def _capture_curve(obj, posed):
-    arrays = []
-    for _, width, points, prop in _curve_channels(obj.data):
-        flat = np.empty(len(points) * width, dtype=np.float32)
-        points.foreach_get(prop, flat)
-        arrays.append(flat)
-    return arrays
-
-
-def _capture_grease_pencil(obj, posed):
-    """The points the rig wrote into its drawings, all layers together (p, 3) float32."""
-    return posed.points(posed.posed)
-
-
-# An image plane's rig is its cut-out mesh: it bakes to shape keys like any mesh.
-_CAPTURE = {"MESH": _capture_mesh, "IMAGE": _capture_mesh, "CURVE": _capture_curve,
-            "GREASEPENCIL": _capture_grease_pencil}
-
-
-# -- writing keys -----------------------------------------------------------------------------
 
 def _channelbag(owner, id_type, name):
     """The channelbag of ``owner``'s action for its slot, made when missing (Blender 4.4+ API)."""
@@ -105,16 +49,9 @@ def _channelbag(owner, id_type, name):
     return compat.ensure_channelbag(action, slot)
 
 
-def _existing_channelbag(owner):
-    animation = owner.animation_data
-    if animation is None or animation.action is None or animation.action_slot is None:
-        return None
-    return compat.channelbag(animation.action, animation.action_slot)
-
-
-def _add_fcurve(bag, path, index, frames, values):
+def _add_fcurve(bag, path, frames, values):
     """One F-curve with a key per frame, written in bulk and interpolated linearly."""
-    curve = bag.fcurves.new(path, index=index)
+    curve = bag.fcurves.new(path, index=0)
     points = curve.keyframe_points
     points.add(len(frames))
     points.foreach_set("co", np.column_stack([frames, values]).astype(np.float32).ravel())
@@ -125,177 +62,48 @@ def _add_fcurve(bag, path, index, frames, values):
     return curve
 
 
-def _clear_mesh(obj):
-    key = obj.data.shape_keys
+def _remove_keys(cage):
+    key = cage.data.shape_keys
     if key is None:
         return 0
-    bag = _existing_channelbag(key)
-    if bag is not None:
-        for curve in [c for c in bag.fcurves if c.data_path.startswith(f'key_blocks["{PREFIX}')]:
-            bag.fcurves.remove(curve)
-    removed = 0
-    for block in [b for b in key.key_blocks if b.name.startswith(PREFIX)]:
-        obj.shape_key_remove(block)
-        removed += 1
-    key = obj.data.shape_keys
-    if key is not None and key.get(MARK) and len(key.key_blocks) <= 1:
-        # Only the Basis this extension made is left: drop it so the live rig shows again.
-        action = key.animation_data.action if key.animation_data else None
-        obj.shape_key_clear()
-        if action is not None and action.get(MARK) and action.users == 0:
-            bpy.data.actions.remove(action)
+    action = key.animation_data.action if key.animation_data else None
+    removed = sum(1 for b in key.key_blocks if b.name.startswith(PREFIX))
+    cage.shape_key_clear()
+    if action is not None and action.get(MARK) and action.users == 0:
+        bpy.data.actions.remove(action)
     return removed
 
 
-def _write_mesh(obj, frames, captured, step, plan=None):
-    if obj.data.shape_keys is None:
-        basis = obj.shape_key_add(name="Basis", from_mix=False)
-        # The reference key is the rest shape, so a baked key shows exactly its positions.
-        basis.data.foreach_set("co", rig.get(obj).source.read_rest(obj).astype(np.float32).ravel())
-        obj.data.shape_keys[MARK] = True
-    key = obj.data.shape_keys
-    bag = _channelbag(key, "KEY", f"{obj.name} Shape Deform Bake")
-    for i, (frame, flat) in enumerate(zip(frames, captured)):
-        block = obj.shape_key_add(name=key_name(frame), from_mix=False)
-        block.data.foreach_set("co", flat)
+def _write_keys(cage, frames, captured):
+    basis = cage.shape_key_add(name="Basis", from_mix=False)
+    # The reference key is the rest, so each baked key shows exactly its pose.
+    basis.data.foreach_set("co", rig_format.rest_of(cage).ravel())
+    key = cage.data.shape_keys
+    key[MARK] = True
+    bag = _channelbag(key, "KEY", f"{cage.name} Shape Deform Bake")
+    for i, (frame, points) in enumerate(zip(frames, captured)):
+        block = cage.shape_key_add(name=key_name(frame), from_mix=False)
+        block.data.foreach_set("co", points.ravel())
         path = f'key_blocks["{bpy.utils.escape_identifier(block.name)}"].value'
-        # Faded in from the frame before and out to the frame after; the first key has no
-        # fade-in and the last no fade-out, so they hold (constant extrapolation) outside the
-        # range, as every kind does.
         keys = ([(frames[i - 1], 0.0)] if i > 0 else []) + [(frame, 1.0)] + \
             ([(frames[i + 1], 0.0)] if i + 1 < len(frames) else [])
-        _add_fcurve(bag, path, 0, *zip(*keys))
-
-
-def _clear_curve(obj):
-    bag = _existing_channelbag(obj.data)
-    if bag is None:
-        return 0
-    baked = [c for c in bag.fcurves if c.data_path.startswith("splines[")]
-    for curve in baked:
-        bag.fcurves.remove(curve)
-    return len(baked)
-
-
-def _write_curve(obj, frames, captured, step, plan=None):
-    bag = _channelbag(obj.data, "CURVE", f"{obj.name} Shape Deform Bake")
-    frames = np.asarray(frames, dtype=np.float32)
-    for c, (path, width, points, prop) in enumerate(_curve_channels(obj.data)):
-        values = np.stack([arrays[c] for arrays in captured]).reshape(len(frames), len(points), width)
-        for i in range(len(points)):
-            for axis in range(3):  # x, y, z (a NURBS weight is never deformed)
-                _add_fcurve(bag, f"{path}[{i}].{prop}", axis, frames, values[:, i, axis])
-
-
-def _made_frames(obj):
-    """{layer name: frame numbers} of the GP keyframes earlier bakes made that a clear removes.
-
-    Never a drawing the rig is bound to: a file saved before Unbind cleared bakes can list one
-    (bake, unbind, bind on a baked frame), and removing it would destroy the rig's own drawing.
-    """
-    made = obj.shapedeform.get(GP_FRAMES)
-    made = made.to_dict() if made is not None else {}
-    bound = set(grease_pencil.bound_frames(obj))
-    return {name: {int(n) for n in numbers if (name, int(n)) not in bound} for name, numbers in made.items()}
-
-
-def _clear_grease_pencil(obj):
-    removed = 0
-    for name, numbers in _made_frames(obj).items():
-        layer = obj.data.layers.get(name)
-        if layer is None:
-            continue
-        existing = {f.frame_number for f in layer.frames}
-        for number in numbers & existing:
-            layer.frames.remove(number)
-            removed += 1
-    obj.shapedeform.pop(GP_FRAMES, None)
-    return removed
-
-
-def _set_positions(drawing, flat):
-    drawing.attributes["position"].data.foreach_set("vector", np.ascontiguousarray(flat).ravel())
-    drawing.tag_positions_changed()
-
-
-def _plan_grease_pencil(obj, frames, captured):
-    """Each rigged layer's (name, bound frame, first point, point count, frames it keeps).
-
-    Looked up before the clear, from what the clear leaves, so a drawing that is missing stops
-    the bake before anything was removed.
-    """
-    made = _made_frames(obj)
-    numbers = np.asarray(frames)
-    plan, start = [], 0
-    for name, bound in grease_pencil.bound_frames(obj):
-        drawing = grease_pencil.drawing_at(obj, name, bound)
-        if drawing is None:
-            raise RigError(f"'{obj.name}' lost the drawing of layer '{name}' at frame {bound}; unbind it")
-        count = len(drawing.attributes["position"].data)
-        # The animator's own keyframes (not made by a bake) are not the rig's: they stay, and
-        # the rig's drawing shows from its own frame up to the next of them. Only there does the
-        # bake add drawings: never before the layer's first keyframe, never over theirs.
-        kept = {f.frame_number for f in obj.data.layers[name].frames} - made.get(name, set())
-        until = min((n for n in kept if n > bound), default=None)
-        shown = np.flatnonzero((numbers > bound) & ((numbers < until) if until is not None else True))
-        # The rig's drawing itself holds the nearest baked frame at or before its own (the
-        # first baked frame when the range starts after it), as every baked keyframe holds.
-        hold = max(int(np.searchsorted(numbers, bound, side="right")) - 1, 0)
-        plan.append((name, bound, start, count, hold, shown))
-        start += count
-    if any(len(points) != start for points in captured):
-        raise RigError(f"'{obj.name}' changed its strokes during the bake")
-    return plan
-
-
-def _write_grease_pencil(obj, frames, captured, step, plan):
-    made = {}
-    for name, bound, start, count, hold, shown in plan:
-        layer = obj.data.layers[name]
-        # The live rig leaves a baked object alone, so the rig's drawing keeps this pose.
-        _set_positions(grease_pencil.drawing_at(obj, name, bound), captured[hold][start:start + count])
-        made[name] = []
-        for i in shown:
-            new = layer.frames.copy(bound, frames[i], instance_drawing=False)
-            drawing = new.drawing  # at once: adding frames can move the others in memory
-            if REST_ATTRIBUTE in drawing.attributes:  # the copy needs no rest of its own
-                drawing.attributes.remove(drawing.attributes[REST_ATTRIBUTE])
-            _set_positions(drawing, captured[i][start:start + count])
-            made[name].append(int(frames[i]))
-    obj.shapedeform[GP_FRAMES] = made
-    obj.data.update_tag()
-
-
-def _plan_mesh(obj, frames, captured):
-    if any(len(flat) != 3 * len(obj.data.vertices) for flat in captured):
-        raise RigError(f"'{obj.name}' changed its vertex count during the bake")
-
-
-def _plan_curve(obj, frames, captured):
-    sizes = [len(points) * width for _, width, points, _ in _curve_channels(obj.data)]
-    if any([len(a) for a in arrays] != sizes for arrays in captured):
-        raise RigError(f"'{obj.name}' changed its control points during the bake")
-
-
-# Per kind: clear the previous bake; plan the write (RigError when it cannot be done, nothing
-# changed yet); write.
-_WRITE = {"MESH": (_clear_mesh, _plan_mesh, _write_mesh), "IMAGE": (_clear_mesh, _plan_mesh, _write_mesh),
-          "CURVE": (_clear_curve, _plan_curve, _write_curve),
-          "GREASEPENCIL": (_clear_grease_pencil, _plan_grease_pencil, _write_grease_pencil)}
+        _add_fcurve(bag, path, *zip(*keys))
 
 
 def is_baked(obj):
-    """Whether ``obj`` plays a bake (the live rig then leaves it alone until the bake is cleared)."""
-    return BAKED in obj.shapedeform
+    """Whether ``obj``'s rig plays a bake (the live rig then leaves its cage alone)."""
+    owner = rig_format.owner_of(obj)
+    return owner is not None and rig_format.is_baked(owner)
 
 
 def clear(obj):
-    """Remove what earlier bakes made on ``obj``; returns how many keys/frames were removed."""
-    kind = obj.shapedeform.kind
-    obj.shapedeform.pop(BAKED, None)
-    if kind not in _WRITE:
+    """Remove the bake of ``obj``'s rig; returns how many baked frames were removed."""
+    owner = rig_format.owner_of(obj)
+    if owner is None:
         return 0
-    return _WRITE[kind][0](obj)
+    owner.shapedeform.pop(BAKED, None)
+    cage = owner.shapedeform.cage
+    return _remove_keys(cage) if cage is not None else 0
 
 
 # -- the bake ---------------------------------------------------------------------------------
@@ -331,17 +139,20 @@ class Bake:
 
     def __init__(self, objects, frames, step=1, scene=None):
         self.scene = scene or bpy.context.scene
-        self.objects = list(objects)
+        self.objects = []
+        for obj in objects:
+            owner = rig_format.owner_of(obj)
+            if owner is None:
+                raise RigError(f"'{obj.name}' is not bound: nothing to bake")
+            if owner not in self.objects:  # a duplicate bakes the rig it follows, once
+                self.objects.append(owner)
         if not self.objects:
             raise RigError("Nothing to bake: no bound objects were given")
         for obj in self.objects:
             settings = obj.shapedeform
-            if not settings.is_bound:
-                raise RigError(f"'{obj.name}' is not bound: nothing to bake")
-            if settings.kind not in _WRITE:
-                raise RigError(f"'{obj.name}' is {with_article(settings.kind.lower() or 'unknown')} rig, "
-                               "which cannot be baked yet")
-            if not any(item.object is not None for item in settings.handles):
+            if settings.cage is None:
+                raise RigError(f"'{obj.name}' has no cage (bound by an older version?): unbind and bind it again")
+            if not any(rig_format.present(item.object) for item in settings.handles):
                 raise RigError(f"'{obj.name}' has no handles: nothing moves, nothing to bake")
         self.frames = list(frames)
         if not self.frames:
@@ -368,7 +179,7 @@ class Bake:
         depsgraph = bpy.context.evaluated_depsgraph_get()
         for obj in self.objects:
             posed = rig.pose(obj, depsgraph, final=True)  # explicitly: a bake does not rely on the handlers
-            self.captured[obj.name].append(_CAPTURE[obj.shapedeform.kind](obj, posed))
+            self.captured[obj.name].append(posed.cage_points(posed.posed))
         self.done += 1
         return self.done == self.total
 
@@ -381,24 +192,21 @@ class Bake:
         self._restore_frame()
 
     def finish(self):
-        """Replace each object's previous bake with this one; returns the objects baked.
-
-        Every object's write is planned (and refused) before any previous bake is cleared, so
-        a bake that cannot be written changes nothing.
+        """Replace each rig's previous bake with this one; returns the rig owners baked.
 
         Raises
         ------
         RigError
-            An object cannot take the bake (e.g. its grease-pencil drawing is gone); nothing
-            was changed (call :meth:`abort`).
+            A rig lost its cage during the bake; nothing was changed (call :meth:`abort`).
         """
         self._restore_frame()
-        plans = [_WRITE[obj.shapedeform.kind][1](obj, self.frames, self.captured[obj.name])
-                 for obj in self.objects]
-        for obj, plan in zip(self.objects, plans):
-            clear_bake, _, write = _WRITE[obj.shapedeform.kind]
-            clear_bake(obj)
-            write(obj, self.frames, self.captured[obj.name], self.step_size, plan)
+        for obj in self.objects:
+            cage = obj.shapedeform.cage
+            if cage is None or any(len(p) != len(cage.data.vertices) for p in self.captured[obj.name]):
+                raise RigError(f"'{obj.name}' lost or changed its cage during the bake")
+        for obj in self.objects:
+            clear(obj)
+            _write_keys(obj.shapedeform.cage, self.frames, self.captured[obj.name])
             obj.shapedeform[BAKED] = [self.frames[0], self.frames[-1], self.step_size]
         self.captured.clear()
         self._restore_frame()  # show the baked result at the current frame
@@ -455,12 +263,11 @@ def bake_objects(objects, frame_start, frame_end, step=1, *, scene=None, progres
 
 def _targets(context):
     """Selected bound objects, plus the rig of the active object or of an active handle."""
-    from .drag import rig_object
-
-    found = [o for o in context.selected_objects if o.shapedeform.is_bound]
-    active = rig_object(context)
-    if active is not None and active not in found:
-        found.append(active)
+    found = []
+    for obj in list(context.selected_objects) + [context.active_object]:
+        owner = rig_format.owner_of(obj)
+        if owner is not None and owner not in found:
+            found.append(owner)
     return found
 
 

@@ -13,8 +13,8 @@ import sys
 
 import bpy
 
-from . import bake, rig
-from .sources import RigError
+from . import bake, rig_format
+from .errors import RigError
 
 COMMAND = "shapedeform"
 
@@ -88,7 +88,7 @@ def _bake(args):
         if unbound:
             raise _UsageError(f"not rigged with Shape Deform: {', '.join(map(repr, unbound))}")
     else:
-        objects = [o for o in rig.bound_objects(scene) if any(h.object for h in o.shapedeform.handles)]
+        objects = [o for o in rig_format.owners(scene) if any(h.object for h in o.shapedeform.handles)]
         if not objects:
             raise _UsageError(f"scene '{scene.name}' has no rigs with handles to bake")
     start, end = args.frames or (scene.frame_start, scene.frame_end)

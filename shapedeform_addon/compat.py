@@ -7,6 +7,9 @@ the rest of the add-on calls one name on every Blender. Nothing here is register
 - Keyframes live in an action's channelbag for a slot (Blender 4.4+). Blender 5.0 added
   ``bpy_extras.anim_utils.action_ensure_channelbag_for_slot``; 4.5 has only the getter, and
   the same is reached through the action's first layer and keyframe strip.
+- A Geometry Nodes modifier's inputs: ID properties of the modifier keyed by socket identifier
+  up to 5.1; from 5.2 ``modifier.properties.inputs.<identifier>.value`` (the modifier takes no
+  ID properties).
 """
 
 from bpy_extras import anim_utils
@@ -36,3 +39,22 @@ def ensure_channelbag(action, slot):
 def channelbag(action, slot):
     """The channelbag of ``action`` for ``slot``, or None when it has none."""
     return anim_utils.action_get_channelbag_for_slot(action, slot)
+
+
+def modifier_input(modifier, identifier):
+    """The value of a Geometry Nodes modifier's input (5.2 keeps inputs in ``properties``;
+    earlier versions as ID properties of the modifier)."""
+    interface = getattr(modifier, "properties", None)
+    if interface is not None:
+        socket = getattr(interface.inputs, identifier, None)
+        return socket.value if socket is not None else None
+    return modifier.get(identifier)
+
+
+def set_modifier_input(modifier, identifier, value):
+    """Set a Geometry Nodes modifier's input (see :func:`modifier_input`)."""
+    interface = getattr(modifier, "properties", None)
+    if interface is not None:
+        getattr(interface.inputs, identifier).value = value
+    else:
+        modifier[identifier] = value

@@ -16,8 +16,8 @@ import numpy as np
 from bpy_extras import view3d_utils
 
 from ..solver.rigging.drag import nearest, parent_offset, ray_plane, transform_points, world_plane
-from . import handles, rig
-from .sources import RigError
+from . import handles, rig, rig_format
+from .errors import RigError
 
 HEADER = {
     False: "Shape Deform drag: click a handle to grab it (Ctrl+click: pin the shape there) | "
@@ -31,14 +31,8 @@ NAVIGATION = {"MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "TRACKPADPAN", "T
 
 
 def rig_object(context):
-    """The rig the user means: the active object if bound, or the rig of an active handle."""
-    obj = context.active_object
-    if obj is None:
-        return None
-    owner = handles.rig_of(obj)
-    if owner is not None:
-        return owner
-    return obj if obj.shapedeform.is_bound else None
+    """The rig the user means (:func:`rig_format.owner_of` the active object), or None."""
+    return rig_format.owner_of(context.active_object)
 
 
 def mouse_ray(region, region_3d, mouse):
@@ -80,7 +74,7 @@ def _plane(obj):
     """The rig's plane in world space, (origin, unit normal)."""
     plane = rig.get(obj).plane
     try:
-        return world_plane(_matrix(obj.matrix_world), plane.origin, plane.normal)
+        return world_plane(rig_format.rig_space(obj), plane.origin, plane.normal)
     except ValueError as err:
         raise RigError(f"'{obj.name}': {err}") from None
 
@@ -111,7 +105,7 @@ def begin(context, obj, ray, pin=False):
     """
     if obj is None or not obj.shapedeform.is_bound:
         raise RigError("Select a bound object or one of its handles to drag")
-    if "baked" in obj.shapedeform:
+    if rig_format.is_baked(obj):
         raise RigError(f"'{obj.name}' plays its bake: clear the bake (Clear Bake) to pose it live")
     plane = _plane(obj)
     hit = ray_plane(*ray, *plane)
@@ -120,7 +114,7 @@ def begin(context, obj, ray, pin=False):
     settings = obj.shapedeform
     if pin:
         current = rig.get(obj)
-        shape = transform_points(_matrix(obj.matrix_world), current.points(current.posed))
+        shape = transform_points(rig_format.rig_space(obj), current.cage_points(current.posed))
         index = nearest(shape, hit)
         if index < 0:
             raise RigError(f"'{obj.name}' has no points to pin")

@@ -10,7 +10,7 @@ what renders, as Blender's viewport refines its samples when the view stops chan
 import bpy
 from bpy.app.handlers import persistent
 
-from . import handles, rig
+from . import handles, rig, rig_format
 
 # Writing geometry makes Blender evaluate again and call us back: ignore those calls.
 _busy = False
@@ -34,10 +34,8 @@ def _pose(objects, depsgraph):
     _busy = True
     try:
         for obj in objects:
-            if obj.mode == "EDIT":
-                continue  # Edit Mode owns the mesh; writing now would be overwritten
-            if "baked" in obj.shapedeform:
-                continue  # its bake plays (see bake.py); posing would overwrite a baked drawing
+            if rig_format.is_baked(obj):
+                continue  # its bake plays (see bake.py)
             message = rig.pose_safely(obj, depsgraph)
             if message:
                 _report(message)
@@ -58,7 +56,7 @@ def refine():
     """Solve the current scene's unsettled rigs again with the Render budget (a timer)."""
     global _busy
     scene = bpy.context.scene
-    objects = [o for o in rig.unsettled(scene) if o.mode != "EDIT" and "baked" not in o.shapedeform]
+    objects = [o for o in rig.unsettled(scene) if not rig_format.is_baked(o)]
     if not objects:
         return None
     _busy = True
@@ -75,15 +73,24 @@ def refine():
 
 @persistent
 def on_depsgraph_update(scene, depsgraph):
-    """A handle moved (or a rigged object's handles did): solve and write at once."""
+    """A handle moved (or a rigged object's handles did): solve and write at once.
+
+    A duplicate of a rig's owner has its modifier pointed back at the owner here (duplicating
+    points it at the copy).
+    """
     if _busy:
         return
     moved = {}
     for update in depsgraph.updates:
-        if not update.is_updated_transform or not isinstance(update.id, bpy.types.Object):
+        if not isinstance(update.id, bpy.types.Object):
             continue
-        owner = handles.rig_of(update.id.original)
-        if owner is not None:
+        obj = update.id.original
+        if rig_format.is_follower(obj):
+            rig_format.repair_owner(obj)
+        if not update.is_updated_transform:
+            continue
+        owner = handles.rig_of(obj)
+        if owner is not None and obj.type == "EMPTY":
             moved[owner.name] = owner
     _pose(list(moved.values()), depsgraph)
 
@@ -93,7 +100,7 @@ def on_frame_change(scene, depsgraph):
     """Frames changed: animated handles have new transforms."""
     if _busy:
         return
-    _pose([o for o in rig.bound_objects(scene) if o.shapedeform.handles], depsgraph)
+    _pose([o for o in rig_format.owners(scene) if o.shapedeform.handles], depsgraph)
 
 
 @persistent

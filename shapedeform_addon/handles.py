@@ -3,7 +3,8 @@
 
 A handle's Empty is parented to the shape's object (so moving the object carries its rig;
 except on curves with path animation, which would carry children along the path) and
-drawn as a circle in the shape's plane, as big as the region of the shape it owns.
+drawn as a circle in the shape's plane, as big as the region of the shape it owns. The rig's
+collection also holds its cage (hidden).
 """
 
 import bpy
@@ -13,10 +14,12 @@ from mathutils import Matrix
 from ..solver.rigging.handles import (frame_2d, handle_matrix, region_offsets, rest_position,
                                       select_region)
 from . import rig as rigs
-from .sources import RigError
+from . import rig_format
+from .errors import RigError
 
 
-def _collection(obj):
+def collection(obj):
+    """The collection of ``obj``'s rig (handles and cage), made when missing."""
     settings = obj.shapedeform
     collection = settings.handle_collection
     if collection is None:
@@ -27,12 +30,13 @@ def _collection(obj):
     return collection
 
 
-def add(obj, location, depsgraph=None):
+def add(obj, location, on_rest=False):
     """Add a handle at a world ``location`` (projected onto the shape's plane).
 
     The handle owns the graph points near the place on the rest shape that is now under
-    ``location``; their offsets are taken from their current (posed) positions, so adding a
-    handle does not move the shape.
+    ``location`` (or, with ``on_rest``, that ``location`` is at on the unposed shape); their
+    offsets are taken from their current (posed) positions, so adding a handle does not move
+    the shape.
 
     Returns
     -------
@@ -48,13 +52,16 @@ def add(obj, location, depsgraph=None):
     if not settings.is_bound:
         raise RigError(f"'{obj.name}' is not bound: bind it first")
     rig = rigs.get(obj)
-    world = np.array(obj.matrix_world, dtype=np.float64)
+    world = rig_format.rig_space(obj)
     local = np.linalg.solve(world, np.append(np.asarray(location, dtype=np.float64), 1.0))[:3]
     point = rig.plane.to_2d(local[None])[0]
     if not np.all(np.isfinite(point)):
         raise RigError("the handle's location is not a finite point")
     graph = rig.graph
-    rest_centre = rest_position(graph.points, rig.posed, graph.triangles, point[None])[0]
+    rest_centre = point if on_rest else rest_position(graph.points, rig.posed, graph.triangles, point[None])[0]
+    if on_rest:
+        # Placed where that rest point is now, so it holds the shape as it is.
+        point = rest_position(rig.posed, graph.points, graph.triangles, point[None])[0]
     taken = np.zeros(graph.n, dtype=bool)
     taken[rig.indices] = True
     try:
@@ -68,15 +75,17 @@ def add(obj, location, depsgraph=None):
     empty = bpy.data.objects.new(f"{obj.name} Handle", None)
     empty.empty_display_type = "CIRCLE"
     empty.empty_display_size = radius
-    _collection(obj).objects.link(empty)
+    collection(obj).objects.link(empty)
     # A Matrix, not a list: a nested list would be read column by column.
+    cage_local = np.linalg.solve(np.array(obj.matrix_world, dtype=np.float64), world)
     if obj.type == "CURVE" and obj.data.use_path:
         # A curve with path animation carries its children along the path: leave it unparented.
         empty.matrix_world = Matrix((world @ matrix).tolist())
     else:
         empty.parent = obj
         empty.matrix_parent_inverse.identity()
-        empty.matrix_basis = Matrix(matrix.tolist())
+        # In rig space, which is the object's space until Apply Transform changes the latter.
+        empty.matrix_basis = Matrix((cage_local @ matrix).tolist())
     empty.shapedeform.rig = obj
     item = settings.handles.add()
     item.object = empty
@@ -136,6 +145,6 @@ def remove_all(obj):
 
 
 def rig_of(empty):
-    """The bound object a handle Empty drives, or None."""
+    """The rig owner a handle Empty (or a cage) belongs to, or None."""
     owner = empty.shapedeform.rig
     return owner if owner is not None and owner.shapedeform.is_bound else None

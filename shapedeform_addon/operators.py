@@ -8,12 +8,12 @@ import bpy
 import numpy as np
 from bpy.props import FloatVectorProperty
 
-from . import handles, rig, sources
-from .sources import RigError
+from . import binding, handles, rig, rig_format, sources
+from .errors import RigError
 
 
 class SHAPEDEFORM_OT_bind(bpy.types.Operator):
-    """Rig the active object: find its plane, build its graph and keep its rest shape"""
+    """Rig the active object: find its plane, build its graph and cage, and add its Shape Deform modifier"""
 
     bl_idname = "shapedeform.bind"
     bl_label = "Bind"
@@ -24,7 +24,7 @@ class SHAPEDEFORM_OT_bind(bpy.types.Operator):
         if obj is not None and obj.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")
         try:
-            bound = rig.bind(obj)
+            bound = binding.bind(obj)
         except RigError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
@@ -33,26 +33,25 @@ class SHAPEDEFORM_OT_bind(bpy.types.Operator):
 
 
 class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
-    """Give back the rest shape exactly and remove the rig, its handles and its bake"""
+    """Remove the rig (modifier, cage, handles and bake); a duplicate that follows another object's rig only stops following it"""
 
     bl_idname = "shapedeform.unbind"
     bl_label = "Unbind"
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
-        obj = rig.rigged_object(context)
+        obj = rig_format.rigged_object(context)
         if obj is None or not obj.shapedeform.is_bound:
             self.report({"ERROR"}, "The active object is not bound")
             return {"CANCELLED"}
         if obj.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")
-        other = rig.shares_data(obj)
-        lost = rig.unbind(obj)
+        owner = rig_format.owner_of(obj)
+        lost = binding.unbind(obj)
         if lost:
             self.report({"WARNING"}, f"Unbound '{obj.name}', but could not give back {'; '.join(lost)}")
-        elif other is not None:
-            self.report({"INFO"}, f"Unbound '{obj.name}'; its data is shared with '{other.name}', "
-                                  "whose rig keeps deforming it")
+        elif owner is not None and owner != obj:
+            self.report({"INFO"}, f"'{obj.name}' no longer follows the rig of '{owner.name}'")
         return {"FINISHED"}
 
 
@@ -67,13 +66,14 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
                                   description="World location of the handle (projected onto the shape's plane)")
 
     def execute(self, context):
-        obj = rig.rigged_object(context)
-        if obj is None or not obj.shapedeform.is_bound:
+        active = rig_format.rigged_object(context)
+        obj = rig_format.owner_of(active)
+        if obj is None:
             self.report({"ERROR"}, "Bind the object before adding handles")
             return {"CANCELLED"}
-        was_edit = obj.mode == "EDIT"
+        was_edit = active.mode == "EDIT"
         if was_edit:
-            # Leaving Edit Mode writes the selection into the data, where the rest data is too.
+            # Leaving Edit Mode writes the selection into the data.
             bpy.ops.object.mode_set(mode="OBJECT")
         if self.properties.is_property_set("location"):
             locations = np.array([self.location], dtype=np.float64)
@@ -81,18 +81,19 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
             # As Blender adds things in Object Mode: at the 3D cursor (projected onto the plane).
             locations = np.array([context.scene.cursor.location], dtype=np.float64)
         else:
-            local = sources.module_for(obj).selected(obj)
+            local = sources.module_for(active).selected(active)
             if len(local) == 0:
                 if was_edit:
                     bpy.ops.object.mode_set(mode="EDIT")
                 self.report({"ERROR"}, "Select points of the shape, or give a location")
                 return {"CANCELLED"}
-            world = np.array(obj.matrix_world, dtype=np.float64)
+            world = np.array(active.matrix_world, dtype=np.float64)
             locations = local @ world[:3, :3].T + world[:3, 3]
         added = []
         try:
             for location in locations:
-                added.append(handles.add(obj, location))
+                # Selected points are given at rest (the data is the rest shape).
+                added.append(handles.add(obj, location, on_rest=was_edit and not self.properties.is_property_set("location")))
         except RigError as err:
             handles.remove(obj, set(added))  # all or nothing
             if was_edit:

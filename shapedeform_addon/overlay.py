@@ -10,7 +10,8 @@ import numpy as np
 
 from ..solver.rigging.plane import transform_points
 from . import rig as rigs
-from .sources import RigError
+from . import rig_format
+from .errors import RigError
 
 EDGE_COLOR = (0.2, 0.8, 1.0, 0.6)
 REGION_COLOR = (1.0, 0.5, 0.1, 1.0)
@@ -33,8 +34,7 @@ def drawing_data(obj):
         rig = rigs.get(obj)
     except RigError:
         return None
-    world = np.array(obj.matrix_world, dtype=np.float64)
-    points = transform_points(world, rig.plane.to_3d(rig.posed))
+    points = transform_points(rig_format.rig_space(obj), rig.plane.to_3d(rig.posed))
     return {"edges": points[rig.graph.edges.ravel()].astype(np.float32),
             "regions": points[rig.indices].astype(np.float32)}
 
@@ -44,9 +44,7 @@ def draw():
     import gpu
     from gpu_extras.batch import batch_for_shader
 
-    obj = bpy.context.active_object
-    if obj is not None and obj.shapedeform.rig is not None:
-        obj = obj.shapedeform.rig
+    obj = rig_format.owner_of(bpy.context.active_object)
     data = drawing_data(obj)
     if data is None:
         return

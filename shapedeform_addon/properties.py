@@ -1,9 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Settings and rig state stored on objects (``Object.shapedeform``), saved in the .blend.
 
-Besides the properties declared here, a bound object keeps its rig's rest data as ID
-properties of ``obj.shapedeform`` (written by :mod:`.rig`): the plane, the graph, and on each
-handle item the graph points it owns and their offsets in its frame.
+Besides the properties declared here, a bound object keeps its rig's graph as ID properties of
+``obj.shapedeform``; :mod:`.rig_format` says what is stored where.
 """
 
 import bpy
@@ -37,7 +36,10 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
     original_data: PointerProperty(type=bpy.types.Mesh, name="Original Mesh",
                                    description="An image plane's quad, given back on unbind")
     rig: PointerProperty(type=bpy.types.Object, name="Rig",
-                         description="On a handle: the object it deforms")
+                         description="On a handle or a cage: the bound object whose rig it belongs to")
+    cage: PointerProperty(type=bpy.types.Object, name="Cage",
+                          description="The mesh of the rig's graph that the solver poses; the object's "
+                                      "Shape Deform modifier maps every point through it")
     preserve_area: BoolProperty(name="Preserve Area", description="Keep the shape's total area",
                                 default=False, update=_settings_changed)
     prevent_flips: BoolProperty(

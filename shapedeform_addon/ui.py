@@ -4,7 +4,7 @@
 import bpy
 
 from .bake import is_baked
-from .rig import rigged_object
+from .rig_format import is_follower, rigged_object
 
 
 class SHAPEDEFORM_UL_handles(bpy.types.UIList):
@@ -28,6 +28,10 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
             layout.label(text="No active object")
             return
         settings = obj.shapedeform
+        if is_follower(obj):
+            layout.label(text=f"Follows the rig of '{settings.cage.shapedeform.rig.name}'", icon="LINKED")
+            layout.operator("shapedeform.unbind", text="Stop Following", icon="X")
+            return
         if not settings.is_bound:
             col = layout.column()
             col.prop(settings, "graph_mode")

@@ -6,33 +6,24 @@ Each source module offers the same functions:
 ``prepare(obj, settings) -> Prepared``
     Read the rest geometry, find its plane and build the graph, changing nothing; raise
     :class:`RigError` with a message for the user when the object cannot be rigged.
-``read_rest(obj) -> (p, 3) float64``
-    The rest points saved at bind time, in the order :func:`write` takes.
-``write(obj, points)``
-    Write (p, 3) float32 points back, one ``foreach_set`` per array.
-``restore(obj) -> list of str``
-    Write the rest points back exactly and delete the saved rest data. Never fails for missing
-    data, so a broken rig can always be unbound: it gives back what it can and returns what it
-    could not, as phrases for a message ("the drawing of layer 'Ink' at frame 3 (...)").
+``unbind(obj) -> list of str``
+    Give back what binding changed (an image plane's quad); returns what it could not, as
+    phrases for a message.
+``restore_legacy(obj) -> list of str``
+    For a rig made by an older version, which wrote poses into the object's data: write the
+    rest points it saved back exactly and delete them. Never fails for missing data, so such a
+    rig can always be unbound: it gives back what it can and returns what it could not.
+``selected(obj) -> (k, 3) float64``
+    Local rest positions of the selected points (for a handle at each).
 """
 
 from dataclasses import dataclass, field
 from typing import Callable
 
-import numpy as np
 
+from ..errors import RigError, with_article
 
-class RigError(Exception):
-    """An object cannot be rigged (or its rig cannot run); the message is for the user."""
-
-
-def with_article(noun):
-    """``noun`` after "a" or "an", for messages ("an empty", "a camera").
-
-    By its first letter: the nouns these messages use (Blender's object types and the rig kinds)
-    have no silent or long-vowel exceptions such as "hour" or "unit".
-    """
-    return f"{'an' if noun[:1].lower() in 'aeiou' else 'a'} {noun}"
+__all__ = ["RigError", "with_article", "type_name", "Prepared", "module_for", "kind_of"]
 
 
 def type_name(obj):
@@ -47,20 +38,14 @@ class Prepared:
 
     Attributes
     ----------
-    rest : (p, 3) float32 ndarray
-        The points that follow the deformation, as the object stores them.
     plane : solver.rigging.Plane
     graph : solver.Graph
-    own_graph : bool
-        The points are the graph's points (no binding needed).
     commit : callable(obj)
-        Makes the changes binding needs (store rest data, replace an image quad).
+        Makes the changes binding needs beyond the rig's own (an image plane's cut-out).
     """
 
-    rest: np.ndarray
     plane: object
     graph: object
-    own_graph: bool
     commit: Callable = field(default=lambda obj: None)
 
 

@@ -5,8 +5,12 @@ Closed splines bound the shape; control points and both Bezier handles of every 
 bound to its graph, so open splines follow the shape they lie in. A curve with no closed spline
 is rigged inside a silhouette swept around its splines. Points are ordered spline after spline:
 a Bezier spline gives its control points, then left handles, then right handles; a poly or NURBS
-spline its points. The rest points are kept as the ID property ``sd_rest`` of the curve data
-(float64, so float32 coordinates come back bit for bit).
+spline its points. The curve is never written: its Shape Deform modifier maps control points
+and handles (a filled, bevelled or text curve reaches the modifier as its tessellated mesh,
+which is mapped the same way).
+
+``sd_rest`` (an ID property of the curve data) is where an older version kept the rest points
+while it wrote poses into the curve; :func:`restore_legacy` gives them back.
 """
 
 import numpy as np
@@ -79,23 +83,14 @@ def prepare(obj, settings):
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
 
-    def commit(o):
-        o.data[REST_PROPERTY] = rest.astype(np.float64).ravel()
-
-    return Prepared(rest, plane, graph, False, commit)
+    return Prepared(plane, graph)
 
 
-def read_rest(obj):
-    values = obj.data.get(REST_PROPERTY)
-    if values is None:
-        raise RigError(f"'{obj.name}' lost its rest shape (property {REST_PROPERTY}); bind it again")
-    rest = np.asarray(values, dtype=np.float64).reshape(-1, 3)
-    if len(rest) != len(points(obj.data)):
-        raise RigError(f"'{obj.name}' changed its control points since it was bound; unbind and bind it again")
-    return rest
+def unbind(obj):
+    return []
 
 
-def write(obj, values):
+def _write(obj, values):
     curve = obj.data
     start = 0
     for spline in curve.splines:
@@ -114,7 +109,7 @@ def write(obj, values):
     curve.update_tag()
 
 
-def restore(obj):
+def restore_legacy(obj):
     values = obj.data.get(REST_PROPERTY)
     if values is None:
         return [f"the rest shape (property {REST_PROPERTY} is gone; the points stay where they are)"]
@@ -123,13 +118,13 @@ def restore(obj):
         # Points were added or deleted since binding: which rest point is whose is unknown.
         return ["the rest shape (control points were added or deleted since binding; "
                 "they stay where they are)"]
-    write(obj, rest.astype(np.float32))
+    _write(obj, rest.astype(np.float32))
     del obj.data[REST_PROPERTY]
     return []
 
 
 def selected(obj):
-    """Current local positions (k, 3) of selected control points."""
+    """Local rest positions (k, 3) of selected control points."""
     chosen = [np.empty((0, 3))]
     for spline in obj.data.splines:
         if spline.type == "BEZIER":

@@ -1,10 +1,16 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Grease pencil (GPv3): the current frame's drawings of all layers, or the chosen ones.
 
-The graph is built inside the silhouette of the strokes (each swept by its radius, closed
-strokes filled); every stroke point is bound to it. The rest positions are kept in each
-drawing's ``sd_rest`` point attribute; the rigged drawings (layer name and frame number) are
-remembered on ``obj.shapedeform``.
+The graph is built inside the silhouette of the current frame's strokes (each swept by its
+radius, closed strokes filled). The drawings are never written: the Shape Deform modifier maps
+the points of every drawing of every keyframe, the animator's later drawings too, in layer space
+(Geometry Nodes do not see layer transforms); stroke radii keep their size. When only some
+layers are chosen, a boolean LAYER attribute (``sd_rigged``) marks them and the modifier
+deforms only those.
+
+An older version wrote poses into the drawings of the frame it was bound on, keeping their
+rest in each drawing's ``sd_rest`` attribute and the drawings' (layer, frame) on
+``obj.shapedeform``; :func:`restore_legacy` gives those back.
 """
 
 import numpy as np
@@ -13,6 +19,7 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from . import Prepared, RigError
+from ..nodes import RIGGED
 from .mesh import REST_ATTRIBUTE, read_vectors
 
 # Strokes thinner than this fraction of the drawing's size are swept this wide, so a hairline
@@ -30,7 +37,7 @@ def _chosen_layers(obj, settings):
 
 
 def bound_frames(obj):
-    """(layer name, frame number) of each drawing the rig deforms, as bound (none when unbound)."""
+    """(layer name, frame number) of each drawing an older version's rig wrote into."""
     settings = obj.shapedeform
     names = settings.get("gp_layers", "").split("\n")
     return [(name, int(number)) for name, number in zip(names, settings.get("gp_frames", []))]
@@ -41,16 +48,6 @@ def drawing_at(obj, name, number):
     layer = obj.data.layers.get(name)
     frame = next((f for f in layer.frames if f.frame_number == number), None) if layer else None
     return frame.drawing if frame is not None else None
-
-
-def _bound_drawings(obj):
-    drawings = []
-    for name, number in bound_frames(obj):
-        drawing = drawing_at(obj, name, number)
-        if drawing is None:
-            raise RigError(f"'{obj.name}' lost the drawing of layer '{name}' at frame {number}; unbind it")
-        drawings.append(drawing)
-    return drawings
 
 
 def _points(drawing):
@@ -97,43 +94,24 @@ def prepare(obj, settings):
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
 
+    chosen = {layer.name for layer, _ in frames} if settings.layers.strip() else None
+
     def commit(o):
-        for (_, frame), points in zip(frames, rests):
-            _store(frame.drawing, points)
-        o.shapedeform["gp_layers"] = "\n".join(layer.name for layer, _ in frames)
-        o.shapedeform["gp_frames"] = np.array([frame.frame_number for _, frame in frames], dtype=np.int32)
+        if chosen is not None:
+            marks = np.array([layer.name in chosen for layer in o.data.layers], dtype=bool)
+            o.data.attributes.new(RIGGED, "BOOLEAN", "LAYER").data.foreach_set("value", marks)
 
-    return Prepared(rest, plane, graph, False, commit)
-
-
-def _store(drawing, points):
-    attribute = drawing.attributes.get(REST_ATTRIBUTE) or drawing.attributes.new(REST_ATTRIBUTE, "FLOAT_VECTOR", "POINT")
-    attribute.data.foreach_set("vector", np.ascontiguousarray(points, dtype=np.float32).ravel())
+    return Prepared(plane, graph, commit)
 
 
-def read_rest(obj):
-    rests = []
-    for drawing in _bound_drawings(obj):
-        attribute = drawing.attributes.get(REST_ATTRIBUTE)
-        count = len(drawing.attributes["position"].data)
-        if attribute is None or len(attribute.data) != count:
-            raise RigError(f"'{obj.name}' lost its rest strokes (attribute {REST_ATTRIBUTE}); unbind it")
-        rests.append(read_vectors(attribute, count))
-    return np.concatenate(rests).astype(np.float64)
+def unbind(obj):
+    attribute = obj.data.attributes.get(RIGGED)
+    if attribute is not None:
+        obj.data.attributes.remove(attribute)
+    return []
 
 
-def write(obj, points):
-    start = 0
-    for drawing in _bound_drawings(obj):
-        attribute = drawing.attributes["position"]
-        count = len(attribute.data)
-        attribute.data.foreach_set("vector", points[start:start + count].ravel())
-        drawing.tag_positions_changed()
-        start += count
-    obj.data.update_tag()
-
-
-def restore(obj):
+def restore_legacy(obj):
     # Every drawing's rest is read before any is written, so what is restored does not depend
     # on where in the list a lost drawing is.
     found, lost = [], []
@@ -156,9 +134,13 @@ def restore(obj):
 
 
 def selected(obj):
-    """Current local positions (k, 3) of selected stroke points of the rigged drawings."""
+    """Layer-space rest positions (k, 3) of selected stroke points of the current drawings."""
     chosen = []
-    for drawing in _bound_drawings(obj):
+    for layer in obj.data.layers:
+        frame = layer.current_frame()
+        if frame is None or frame.drawing is None:
+            continue
+        drawing = frame.drawing
         points = _points(drawing)
         mask = _values(drawing, ".selection", len(points), bool, False)
         chosen.append(points[mask])

@@ -18,7 +18,7 @@ from ...solver.rigging.silhouette import fit_affine, image_cutout
 from . import Prepared, RigError, mesh as mesh_source
 
 # Shared with meshes once the cut-out is in place.
-read_rest, write, selected = mesh_source.read_rest, mesh_source.write, mesh_source.selected
+selected = mesh_source.selected
 
 
 def _image(obj):
@@ -62,7 +62,7 @@ def prepare(obj, settings):
         graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
-    vertices = plane.to_3d(graph.points).astype(np.float32)
+    vertices = plane.to_3d(graph.points).astype(np.float32)  # float32 as Blender stores them
     uvs = apply_affine(np.linalg.inv(to_plane), graph.points)[graph.triangles].astype(np.float32)
 
     def commit(o):
@@ -75,18 +75,22 @@ def prepare(obj, settings):
         cutout.update()
         o.shapedeform.original_data = quad
         o.data = cutout
-        mesh_source.store_rest(cutout, vertices)
 
-    return Prepared(vertices, plane, graph, True, commit)
+    return Prepared(plane, graph, commit)
 
 
-def restore(obj):
+def unbind(obj):
     original = obj.shapedeform.original_data
     if original is None:
-        return mesh_source.restore(obj)
+        return []
     cutout = obj.data
     obj.data = original
     obj.shapedeform.original_data = None
     if cutout.users == 0:
         bpy.data.meshes.remove(cutout)
     return []
+
+
+def restore_legacy(obj):
+    # An older version's image plane wrote poses into the cut-out, which goes with the quad's return.
+    return [] if obj.shapedeform.original_data is not None else mesh_source.restore_legacy(obj)

@@ -1,8 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Planar meshes: vertex positions in, vertex positions out.
+"""Planar meshes: the graph is the mesh itself (small, well-shaped meshes) or built inside its
+outline; the mesh is never written (its Shape Deform modifier shows the pose).
 
-The rest positions are kept in the point attribute ``sd_rest`` (float32, an exact copy), so
-unbinding gives back the mesh bit for bit and the rig survives save and reload.
+``sd_rest`` is where an older version kept the rest positions while it wrote poses into the
+mesh; :func:`restore_legacy` gives them back when such a rig is unbound.
 """
 
 import numpy as np
@@ -77,41 +78,27 @@ def prepare(obj, settings):
             graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
-    return Prepared(rest, plane, graph, mode == "OWN", commit=lambda o: store_rest(o.data, rest))
+    return Prepared(plane, graph)
 
 
-def store_rest(mesh, rest):
-    attribute = mesh.attributes.get(REST_ATTRIBUTE) or mesh.attributes.new(REST_ATTRIBUTE, "FLOAT_VECTOR", "POINT")
-    attribute.data.foreach_set("vector", np.ascontiguousarray(rest, dtype=np.float32).ravel())
+def unbind(obj):
+    return []
 
 
-def read_rest(obj):
-    mesh = obj.data
-    attribute = mesh.attributes.get(REST_ATTRIBUTE)
-    if attribute is None or attribute.domain != "POINT" or attribute.data_type != "FLOAT_VECTOR":
-        raise RigError(f"'{obj.name}' lost its rest shape (attribute {REST_ATTRIBUTE}); bind it again")
-    return read_vectors(attribute, len(mesh.vertices)).astype(np.float64)
-
-
-def write(obj, points):
-    mesh = obj.data
-    mesh.attributes["position"].data.foreach_set("vector", points.ravel())
-    mesh.update()
-
-
-def restore(obj):
+def restore_legacy(obj):
     mesh = obj.data
     attribute = mesh.attributes.get(REST_ATTRIBUTE)
     if attribute is None or attribute.domain != "POINT" or attribute.data_type != "FLOAT_VECTOR":
         return [f"the rest shape (attribute {REST_ATTRIBUTE} is gone or changed; the vertices stay where they are)"]
     rest = read_vectors(attribute, len(mesh.vertices))
     mesh.attributes.remove(attribute)
-    write(obj, rest)
+    mesh.attributes["position"].data.foreach_set("vector", rest.ravel())
+    mesh.update()
     return []
 
 
 def selected(obj):
-    """Current local positions (k, 3) of the selected vertices (call in Object Mode)."""
+    """Local rest positions (k, 3) of the selected vertices (call in Object Mode)."""
     mesh = obj.data
     mask = np.zeros(len(mesh.vertices), dtype=bool)
     mesh.vertices.foreach_get("select", mask)

@@ -39,6 +39,47 @@ def evaluated_mesh_points(obj):
     return mesh_points(obj, obj.evaluated_get(depsgraph).data)
 
 
+def _attribute_vectors(attributes, name, count):
+    flat = np.empty(count * 3, np.float32)
+    attributes[name].data.foreach_get("vector", flat)
+    return flat.reshape(-1, 3)
+
+
+def evaluated_curve_points(obj, handles=True):
+    """Control points of an evaluated curve (its modifiers applied), then with ``handles`` its
+    left and right handles: (p, 3) float32, in the order the curve's splines hold them."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    geometry = obj.evaluated_get(depsgraph).evaluated_geometry()  # owns what it hands out
+    curves = geometry.curves
+    count = len(curves.points)
+    names = ("position", "handle_left", "handle_right") if handles else ("position",)
+    return np.concatenate([_attribute_vectors(curves.attributes, name, count) for name in names])
+
+
+def drawing_points(drawing):
+    """Stroke points (p, 3) float32 of a grease-pencil drawing."""
+    attribute = drawing.attributes["position"]
+    flat = np.empty(len(attribute.data) * 3, np.float32)
+    attribute.data.foreach_get("vector", flat)
+    return flat.reshape(-1, 3)
+
+
+def evaluated_drawing_points(obj, layer=None):
+    """Stroke points (p, 3) float32 of the evaluated drawings on the current frame (every layer,
+    bottom to top, or only ``layer``), modifiers applied."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    geometry = obj.evaluated_get(depsgraph).evaluated_geometry()  # owns what it hands out
+    data = geometry.grease_pencil
+    layers = [data.layers[layer]] if layer is not None else list(data.layers)
+    found = [drawing_points(l.current_frame().drawing) for l in layers if l.current_frame() is not None]
+    return np.concatenate(found) if found else np.empty((0, 3), np.float32)
+
+
+def cage(obj):
+    """The cage object of ``obj``'s rig."""
+    return obj.shapedeform.cage
+
+
 def triangles(obj):
     mesh = obj.data
     mesh.calc_loop_triangles()

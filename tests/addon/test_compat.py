@@ -31,3 +31,32 @@ def test_ensure_channelbag_makes_one_bag_that_keys(addon, monkeypatch, with_help
     bpy.context.scene.collection.objects.link(owner)
     bpy.context.scene.frame_set(1)
     assert owner.location.z == pytest.approx(3.0)
+
+
+def test_modifier_inputs_are_set_and_read_back_and_reach_the_nodes(addon):
+    """Whichever way this Blender keeps a Geometry Nodes modifier's inputs."""
+    import numpy as np
+
+    shapedeform = addon.shapedeform_addon
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    cage = bpy.context.active_object
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.quads_convert_to_tris()
+    bpy.ops.object.mode_set(mode="OBJECT")
+    rest = np.array([v.co for v in cage.data.vertices], dtype=np.float32)
+    cage.data.attributes.new("sd_rest", "FLOAT_VECTOR", "POINT").data.foreach_set("vector", rest.ravel())
+    cage.data.attributes["position"].data.foreach_set("vector", (rest + [0.0, 0.5, 0.0]).astype(np.float32).ravel())
+    bpy.ops.mesh.primitive_plane_add(size=1.0)
+    obj = bpy.context.active_object
+    group = shapedeform.nodes.node_group()
+    modifier = obj.modifiers.new("Shape Deform", "NODES")
+    modifier.node_group = group
+    ids = shapedeform.nodes.input_identifiers(group)
+    assert shapedeform.compat.modifier_input(modifier, ids["Cage"]) is None
+    for name in ("Cage", "Owner"):
+        shapedeform.compat.set_modifier_input(modifier, ids[name], cage if name == "Cage" else obj)
+    assert shapedeform.compat.modifier_input(modifier, ids["Cage"]) == cage
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    moved = np.array([v.co for v in obj.evaluated_get(depsgraph).data.vertices])
+    own = np.array([v.co for v in obj.data.vertices])
+    np.testing.assert_allclose(moved, own + [0.0, 0.5, 0.0], atol=1e-6)  # the cage's shift, carried over

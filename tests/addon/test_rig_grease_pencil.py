@@ -9,14 +9,9 @@ import rig_checks as checks
 
 
 def drawing_points(obj, evaluated=True):
-    data = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data if evaluated else obj.data
-    result = []
-    for layer in data.layers:
-        attribute = layer.current_frame().drawing.attributes["position"]
-        flat = np.empty(len(attribute.data) * 3, np.float32)
-        attribute.data.foreach_get("vector", flat)
-        result.append(flat.reshape(-1, 3))
-    return np.concatenate(result)
+    if evaluated:
+        return checks.evaluated_drawing_points(obj)
+    return np.concatenate([checks.drawing_points(layer.current_frame().drawing) for layer in obj.data.layers])
 
 
 def test_monkey_follows_its_handles_and_unbinds_exactly(addon, tmp_path):
@@ -45,7 +40,8 @@ def test_monkey_follows_its_handles_and_unbinds_exactly(addon, tmp_path):
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.ops.wm.open_mainfile(filepath=path)
     obj = bpy.data.objects["Monkey"]
-    np.testing.assert_array_equal(drawing_points(obj, evaluated=False), posed)
+    assert drawing_points(obj, evaluated=False).tobytes() == rest.tobytes()  # the pose is the modifier's
+    np.testing.assert_array_equal(drawing_points(obj), posed)
     obj.shapedeform.handles[1].object.location.x -= 0.3
     bpy.context.view_layer.update()
     np.testing.assert_allclose(drawing_points(obj), rest, atol=1e-4)
@@ -63,8 +59,18 @@ def test_chosen_layers_only(addon):
     obj = bpy.context.active_object
     obj.shapedeform.layers = "Lines"
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    assert obj.shapedeform["gp_layers"] == "Lines"
-    obj.shapedeform.is_bound and bpy.ops.shapedeform.unbind()
+    rest = {name: checks.drawing_points(obj.data.layers[name].current_frame().drawing).copy()
+            for name in ("Fills", "Lines")}
+    lines = rest["Lines"]
+    checks.add_handle(obj, checks.world(obj, lines[np.argmin(lines[:, 2])]))
+    handle = checks.add_handle(obj, checks.world(obj, lines[np.argmax(lines[:, 2])]))
+    handle.location.x += 0.3
+    bpy.context.view_layer.update()
+    assert np.abs(checks.evaluated_drawing_points(obj, "Lines") - rest["Lines"]).max() > 0.2
+    assert checks.evaluated_drawing_points(obj, "Fills").tobytes() == rest["Fills"].tobytes()
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert "sd_rigged" not in obj.data.attributes
+    bpy.context.view_layer.objects.active = obj
     obj.shapedeform.layers = "Nope"
     with pytest.raises(RuntimeError, match="no layer 'Nope'"):
         bpy.ops.shapedeform.bind()

@@ -1,0 +1,104 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Binding an object to a new rig, and unbinding it.
+
+Binding computes everything first (so a refusal changes nothing), then adds the cage, the
+handle collection and the Shape Deform modifier; the object's own data is left as it is (an
+image plane's quad is swapped for a cut-out of its picture, kept and given back on unbind).
+"""
+
+import bpy
+
+from . import bake, handles, rig, rig_format, sources
+from .errors import RigError
+
+
+def bind(obj):
+    """Rig ``obj``; returns its :class:`rig.Rig`.
+
+    Raises
+    ------
+    RigError
+        The object cannot be rigged; the message says why and nothing was changed.
+    """
+    if obj is None:
+        raise RigError("No active object to rig")
+    settings = obj.shapedeform
+    if rig_format.is_follower(obj):
+        owner = settings.cage.shapedeform.rig
+        raise RigError(f"'{obj.name}' follows the rig of '{owner.name}': unbind it first to give it its own")
+    if settings.is_bound:
+        raise RigError(f"'{obj.name}' is already bound")
+    if settings.rig is not None:
+        raise RigError(f"'{obj.name}' is part of the rig of '{settings.rig.name}'")
+    kind = sources.kind_of(obj)
+    prepared = sources.module_for(obj).prepare(obj, settings)
+    prepared.commit(obj)
+    rig_format.store_graph(settings, prepared.plane, prepared.graph)
+    settings.cage = rig_format.make_cage(obj, prepared.plane, prepared.graph, handles.collection(obj))
+    rig_format.add_modifier(obj, settings.cage, obj)
+    settings.kind = kind
+    settings.is_bound = True
+    settings.status = ""
+    for scene in obj.users_scene:
+        # Frame handlers pose rigs while a render reads the scene from another thread: lock the
+        # interface during renders (saved in the file, so farm and F12 renders are safe).
+        scene.render.use_lock_interface = True
+    rig.forget(obj)
+    return rig.get(obj)
+
+
+def _forget_settings(obj):
+    settings = obj.shapedeform
+    rig_format.clear_graph(settings)
+    for key in (rig_format.BAKED, "gp_layers", "gp_frames", "baked_gp_frames"):
+        settings.pop(key, None)
+    settings.is_bound = False
+    settings.kind = ""
+    settings.status = ""
+    settings.cage = None
+
+
+def unbind(obj):
+    """Remove the rig: modifier, cage, bake, handles; the object's data is as it was.
+
+    A follower (a duplicate of a rig's owner) gives up only its modifier and copied settings;
+    the owner's rig is untouched. A rig made by an older version, which wrote poses into the
+    object's data, gets its rest shape back from what that version saved.
+
+    Returns
+    -------
+    list of str
+        What could not be given back, as phrases for a message (empty when all was).
+
+    Raises
+    ------
+    RigError
+        ``obj`` is not bound; nothing was changed.
+    """
+    settings = obj.shapedeform
+    if not settings.is_bound:
+        raise RigError(f"'{obj.name}' is not bound")
+    for modifier in rig_format.modifiers_of(obj):
+        obj.modifiers.remove(modifier)
+    lost = []
+    if rig_format.is_follower(obj):
+        settings.handles.clear()
+        settings.handle_collection = None
+        settings.original_data = None  # the quad is the owner's to give back
+        _forget_settings(obj)
+        return lost
+    source = sources.module_for(obj)
+    if settings.cage is None:
+        lost = source.restore_legacy(obj)
+    else:
+        bake.clear(obj)
+        cage = settings.cage
+        mesh = cage.data
+        bpy.data.objects.remove(cage)
+        if mesh.users == 0:
+            bpy.data.meshes.remove(mesh)
+    lost += source.unbind(obj)
+    _forget_settings(obj)
+    handles.remove_all(obj)
+    rig.forget(obj)
+    return lost

@@ -1,0 +1,15 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The add-on's error, and the small grammar of its messages. Imports nothing."""
+
+
+class RigError(Exception):
+    """An object cannot be rigged (or its rig cannot run); the message is for the user."""
+
+
+def with_article(noun):
+    """``noun`` after "a" or "an", for messages ("an empty", "a camera").
+
+    By its first letter: the nouns these messages use (Blender's object types and the rig kinds)
+    have no silent or long-vowel exceptions such as "hour" or "unit".
+    """
+    return f"{'an' if noun[:1].lower() in 'aeiou' else 'a'} {noun}"

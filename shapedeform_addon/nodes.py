@@ -1,0 +1,168 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The Geometry Nodes group that deforms a bound object through its rig's cage.
+
+The cage is a triangle mesh of the solver's graph, posed by the rig; its point attribute
+``sd_rest`` holds each point's rest position. The group maps every point it receives (mesh
+vertices, curve control points and both Bezier handles, grease-pencil stroke points of every
+drawing) by the affine map of the nearest rest triangle: the map that takes that triangle's
+rest corners to its posed corners and keeps the distance from the plane. Inside the outline
+this is the barycentric interpolation of the posed cage; outside it, the nearest triangle's map
+carried on, so points off the cage (outside the outline, lifted by a shape key) move with the
+part they belong to instead of sticking to its border.
+
+Rig space: the cage's points are in the space the rig was bound in (the bound object's local
+space at bind time). The cage object is parented to the bound object, so Apply Transform on it
+keeps the cage's world place by changing the cage's own transform: the group maps the cage into
+the deformed object's space with ``inverse(owner) @ cage``, both world matrices, where the
+owner is the bound object. A duplicate's modifier keeps both pointers, so it follows the same
+rig in its own space.
+
+A missing cage (deleted by hand) leaves the geometry as it is.
+
+The group is built from Python (no asset file to keep in step) and rebuilt when an older
+extension's group is found (``VERSION``).
+"""
+
+import bpy
+
+GROUP_NAME = "Shape Deform"
+VERSION = 1
+VERSION_KEY = "shapedeform_version"
+REST = "sd_rest"
+POSED = "sd_posed"  # only inside the group, on the cage
+# A boolean attribute naming what the rig deforms (grease-pencil layers chosen at bind time, on
+# the LAYER domain); everything is deformed when it is missing.
+RIGGED = "sd_rigged"
+CAGE_INPUT, OWNER_INPUT = "Cage", "Owner"
+
+
+def node_group():
+    """The current file's deformer group, built (or rebuilt from an older version) if needed."""
+    group = bpy.data.node_groups.get(GROUP_NAME)
+    if group is not None and group.bl_idname == "GeometryNodeTree" and group.get(VERSION_KEY) == VERSION:
+        return group
+    if group is None or group.bl_idname != "GeometryNodeTree":
+        group = bpy.data.node_groups.new(GROUP_NAME, "GeometryNodeTree")
+    _build(group)
+    group[VERSION_KEY] = VERSION
+    return group
+
+
+def input_identifiers(group):
+    """{input name: identifier} of the group's inputs (modifier keys are the identifiers)."""
+    return {item.name: item.identifier for item in group.interface.items_tree
+            if item.item_type == "SOCKET" and item.in_out == "INPUT"}
+
+
+class _Builder:
+    """Adds nodes to a group and wires them: ``node(idname, inputs, **properties)``."""
+
+    def __init__(self, group):
+        self.group = group
+        self.x = 0
+
+    def node(self, idname, inputs=(), **properties):
+        node = self.group.nodes.new(idname)
+        for name, value in properties.items():
+            setattr(node, name, value)
+        for key, value in (inputs.items() if isinstance(inputs, dict) else enumerate(inputs)):
+            if value is None:
+                continue
+            socket = node.inputs[key]
+            if isinstance(value, bpy.types.NodeSocket):
+                self.group.links.new(value, socket)
+            else:
+                socket.default_value = value
+        node.location = (self.x, 0)
+        self.x += 180
+        return node
+
+    def math(self, operation, *inputs):
+        return self.node("ShaderNodeVectorMath", inputs, operation=operation).outputs[0]
+
+    def columns_matrix(self, *columns):
+        """A 4x4 affine matrix from three vector columns and a translation column."""
+        inputs = {}
+        for c, column in enumerate(columns):
+            xyz = self.node("ShaderNodeSeparateXYZ", [column])
+            for r in range(3):
+                inputs[4 * c + r] = xyz.outputs[r]
+        return self.node("FunctionNodeCombineMatrix", inputs).outputs[0]
+
+
+def _build(group):
+    group.nodes.clear()
+    group.interface.clear()
+    group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    group.interface.new_socket(CAGE_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
+    group.interface.new_socket(OWNER_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
+    group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    b = _Builder(group)
+    given = b.node("NodeGroupInput")
+    geometry, cage_object, owner_object = given.outputs[0], given.outputs[1], given.outputs[2]
+
+    # The cage in the deformed object's space: posed positions, and the rest as positions.
+    cage = b.node("GeometryNodeObjectInfo", {"Object": cage_object}, transform_space="ORIGINAL")
+    owner = b.node("GeometryNodeObjectInfo", {"Object": owner_object}, transform_space="ORIGINAL")
+    inverse_owner = b.node("FunctionNodeInvertMatrix", [owner.outputs["Transform"]]).outputs[0]
+    to_object = b.node("FunctionNodeMatrixMultiply", [inverse_owner, cage.outputs["Transform"]]).outputs[0]
+    position = b.node("GeometryNodeInputPosition").outputs[0]
+    rest = b.node("GeometryNodeInputNamedAttribute", {"Name": REST}, data_type="FLOAT_VECTOR").outputs[0]
+    posed_here = b.node("FunctionNodeTransformPoint", [position, to_object]).outputs[0]
+    rest_here = b.node("FunctionNodeTransformPoint", [rest, to_object]).outputs[0]
+    stored = b.node("GeometryNodeStoreNamedAttribute",
+                    {"Geometry": cage.outputs["Geometry"], "Name": POSED, "Value": posed_here},
+                    data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
+    rest_cage = b.node("GeometryNodeSetPosition", {"Geometry": stored, "Position": rest_here}).outputs[0]
+
+    # Each triangle's affine map (a face field): rest corners -> posed corners, the rest
+    # normal kept, so heights above the plane are kept.
+    posed = b.node("GeometryNodeInputNamedAttribute", {"Name": POSED}, data_type="FLOAT_VECTOR").outputs[0]
+    rest_corners, posed_corners = [], []
+    for k in range(3):
+        corner = b.node("GeometryNodeCornersOfFace", {"Sort Index": k}).outputs["Corner Index"]
+        vertex = b.node("GeometryNodeVertexOfCorner", [corner]).outputs[0]
+        for field, corners in ((position, rest_corners), (posed, posed_corners)):
+            corners.append(b.node("GeometryNodeSampleIndex", {"Geometry": rest_cage, "Value": field, "Index": vertex},
+                                  data_type="FLOAT_VECTOR", domain="POINT").outputs[0])
+    e1, e2 = (b.math("SUBTRACT", r, rest_corners[0]) for r in rest_corners[1:])
+    f1, f2 = (b.math("SUBTRACT", p, posed_corners[0]) for p in posed_corners[1:])
+    normal = b.math("NORMALIZE", b.math("CROSS_PRODUCT", e1, e2))
+    rest_frame = b.columns_matrix(e1, e2, normal, rest_corners[0])
+    posed_frame = b.columns_matrix(f1, f2, normal, posed_corners[0])
+    inverse_rest = b.node("FunctionNodeInvertMatrix", [rest_frame]).outputs[0]
+    face_map = b.node("FunctionNodeMatrixMultiply", [posed_frame, inverse_rest]).outputs[0]
+
+    def mapped(point):
+        """``point`` (a field on the deformed geometry) through its nearest triangle's map."""
+        face = b.node("GeometryNodeSampleNearest", {"Geometry": rest_cage, "Sample Position": point},
+                      domain="FACE").outputs[0]
+        matrix = b.node("GeometryNodeSampleIndex", {"Geometry": rest_cage, "Value": face_map, "Index": face},
+                        data_type="FLOAT4X4", domain="FACE").outputs[0]
+        return b.node("FunctionNodeTransformPoint", [point, matrix]).outputs[0]
+
+    rigged = b.node("GeometryNodeInputNamedAttribute", {"Name": RIGGED}, data_type="BOOLEAN")
+    unmarked = b.node("FunctionNodeBooleanMath", [rigged.outputs["Exists"]], operation="NOT").outputs[0]
+    selection = b.node("FunctionNodeBooleanMath", [unmarked, rigged.outputs[0]], operation="OR").outputs[0]
+
+    # Bezier handles are mapped from where they are, then set FREE so Blender does not derive
+    # them again from the moved control points; Set Position leaves handles that are set.
+    handles = b.node("GeometryNodeInputCurveHandlePositions")
+    free = b.node("GeometryNodeCurveSetHandles", {"Curve": geometry, "Selection": selection},
+                  handle_type="FREE", mode={"LEFT", "RIGHT"})
+    left = b.node("GeometryNodeSetCurveHandlePositions",
+                  {"Curve": free.outputs[0], "Selection": selection, "Position": mapped(handles.outputs["Left"])},
+                  mode="LEFT")
+    right = b.node("GeometryNodeSetCurveHandlePositions",
+                   {"Curve": left.outputs[0], "Selection": selection, "Position": mapped(handles.outputs["Right"])},
+                   mode="RIGHT")
+    moved = b.node("GeometryNodeSetPosition",
+                   {"Geometry": right.outputs[0], "Selection": selection, "Position": mapped(position)})
+
+    # No cage (deleted by hand, or no faces): the geometry passes unchanged.
+    faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.outputs["Geometry"]}, component="MESH")
+    has_cage = b.node("FunctionNodeCompare", {"A": faces.outputs["Face Count"], "B": 0},
+                      data_type="INT", operation="GREATER_THAN").outputs[0]
+    switch = b.node("GeometryNodeSwitch", {"Switch": has_cage, "False": geometry, "True": moved.outputs[0]},
+                    input_type="GEOMETRY")
+    b.node("NodeGroupOutput", {0: switch.outputs[0]})

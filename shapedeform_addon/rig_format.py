@@ -1,0 +1,231 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The saved rig format: everything a rig keeps in the .blend, read and written here only.
+
+A rig never changes the data of the object it deforms (an image plane's quad is swapped for a
+cut-out mesh the rig makes, and given back on unbind). What it keeps:
+
+On the bound object (the rig's *owner*), ``obj.shapedeform``:
+    ``is_bound``, ``kind``, the settings (:mod:`.properties`), ``cage``, ``handles`` (each item:
+    the Empty, and as ID properties ``indices``, the graph points it owns, and ``offsets``,
+    those points in the handle's frame when it was added), and as ID properties the plane
+    (``plane``, 12 numbers) and the graph (``graph_points``, ``graph_edges``, ``graph_loops``
+    with ``graph_loop_sizes``, ``graph_triangles``), stored rather than rebuilt so that a file
+    opens with exactly the graph it was rigged with.
+The cage, a mesh object parented to the owner (or copying its transform) and hidden:
+    the graph's triangles, its positions the current pose in *rig space* (the owner's local
+    space when it was bound), its point attribute ``sd_rest`` the rest, ``shapedeform.rig``
+    the owner. A bake is shape keys on its mesh (:mod:`.bake`).
+Every object the rig deforms (the owner, and duplicates of it):
+    a Geometry Nodes modifier with the group of :mod:`.nodes`, whose inputs name the cage and
+    the owner.
+
+A duplicate of the owner (Shift+D, Alt+D) copies its settings and modifier: it *follows* the
+owner's rig (same cage, same handles) and is never posed on its own.
+"""
+
+import bpy
+import numpy as np
+
+from .. import solver
+from ..solver.rigging.plane import Plane
+from . import compat, nodes
+from .errors import RigError
+
+GRAPH_KEYS = ("plane", "graph_points", "graph_edges", "graph_loops", "graph_loop_sizes", "graph_triangles")
+MODIFIER_NAME = "Shape Deform"
+BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that plays
+
+
+# -- the graph and the plane ------------------------------------------------------------------
+
+def store_graph(settings, plane, graph):
+    settings["plane"] = plane.to_array()
+    settings["graph_points"] = graph.points.ravel()
+    settings["graph_edges"] = graph.edges.astype(np.int32).ravel()
+    settings["graph_loops"] = np.concatenate(graph.boundary_loops).astype(np.int32)
+    settings["graph_loop_sizes"] = np.array([len(loop) for loop in graph.boundary_loops], dtype=np.int32)
+    settings["graph_triangles"] = graph.triangles.astype(np.int32).ravel()
+
+
+def read_graph(obj):
+    """The stored (Plane, solver.Graph) of a bound owner; RigError when damaged."""
+    settings = obj.shapedeform
+    try:
+        plane = Plane.from_array(settings["plane"])
+        n = len(settings["graph_points"]) // 2
+        points = np.asarray(settings["graph_points"], dtype=np.float64).reshape(n, 2)
+        loops = np.split(np.asarray(settings["graph_loops"], dtype=np.int64),
+                         np.cumsum(np.asarray(settings["graph_loop_sizes"]))[:-1])
+        graph = solver.Graph(points, np.asarray(settings["graph_edges"]).reshape(-1, 2),
+                             loops, np.asarray(settings["graph_triangles"]).reshape(-1, 3))
+    except (KeyError, ValueError) as err:
+        raise RigError(f"'{obj.name}' has damaged rig data ({err}); unbind and bind it again") from None
+    return plane, graph
+
+
+def clear_graph(settings):
+    for key in GRAPH_KEYS + ("own_graph",):
+        settings.pop(key, None)
+
+
+# -- handles ----------------------------------------------------------------------------------
+
+def present(handle):
+    """A handle Empty that still exists in a scene.
+
+    Deleting an object in the viewport only unlinks it: the handle's pointer keeps it alive
+    as an orphan, so "deleted by hand" means "in no scene".
+    """
+    return handle is not None and len(handle.users_scene) > 0
+
+
+def handle_items(obj):
+    """The owner's live handles: [(Empty, indices (k,) int64, offsets (k, 2) float64)]."""
+    found = []
+    for item in obj.shapedeform.handles:
+        if present(item.object) and "indices" in item:
+            found.append((item.object, np.asarray(item["indices"], dtype=np.int64),
+                          np.asarray(item["offsets"], dtype=np.float64).reshape(-1, 2)))
+    return found
+
+
+# -- the cage and the modifier ----------------------------------------------------------------
+
+def make_cage(obj, plane, graph, collection):
+    """The cage object of ``obj``'s rig, at rest, parented to it and linked into ``collection``."""
+    rest = plane.to_3d(graph.points).astype(np.float32)
+    mesh = bpy.data.meshes.new(f"{obj.name} Cage")
+    mesh.from_pydata(rest.tolist(), [], graph.triangles.tolist())
+    mesh.attributes.new(nodes.REST, "FLOAT_VECTOR", "POINT").data.foreach_set("vector", rest.ravel())
+    mesh.update()
+    cage = bpy.data.objects.new(f"{obj.name} Cage", mesh)
+    collection.objects.link(cage)
+    if obj.type == "CURVE" and obj.data.use_path:
+        # A child of a curve with path animation depends on the curve's geometry, which
+        # depends on the cage: a cycle. The cage copies the curve's transform instead (Apply
+        # Transform then is not followed; the README says so).
+        cage.constraints.new("COPY_TRANSFORMS").target = obj
+    else:
+        cage.parent = obj
+        cage.matrix_parent_inverse.identity()
+    cage.display_type = "WIRE"
+    cage.hide_render = True
+    cage.hide_select = True
+    cage.hide_viewport = True
+    cage.shapedeform.rig = obj
+    return cage
+
+
+def write_pose(cage, points):
+    """Write the pose (n, 3) float32 into the cage; False when a bake holds it (shape keys)."""
+    mesh = cage.data
+    if mesh.shape_keys is not None:
+        return False
+    mesh.attributes["position"].data.foreach_set("vector", points.ravel())
+    mesh.update()
+    return True
+
+
+def rest_of(cage):
+    """The cage's rest points (n, 3) float32, as stored at bind time."""
+    mesh = cage.data
+    flat = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.attributes[nodes.REST].data.foreach_get("vector", flat)
+    return flat.reshape(-1, 3)
+
+
+def add_modifier(obj, cage, owner):
+    """Give ``obj`` the deformer modifier driven by ``cage`` (at the end of its stack)."""
+    group = nodes.node_group()
+    modifier = obj.modifiers.new(MODIFIER_NAME, "NODES")
+    modifier.node_group = group
+    modifier.show_in_editmode = True
+    ids = nodes.input_identifiers(group)
+    compat.set_modifier_input(modifier, ids[nodes.CAGE_INPUT], cage)
+    compat.set_modifier_input(modifier, ids[nodes.OWNER_INPUT], owner)
+    return modifier
+
+
+def modifiers_of(obj):
+    """The object's deformer modifiers (normally one)."""
+    return [m for m in obj.modifiers
+            if m.type == "NODES" and m.node_group is not None and nodes.VERSION_KEY in m.node_group]
+
+
+def repair_owner(obj):
+    """Point a duplicate's modifier back at its rig's owner; True when something changed.
+
+    Duplicating an object makes its copy's pointers to the original point at the copy, the
+    modifier's Owner among them; the cage's space is the owner's, so a copy would then read
+    the cage in the wrong place.
+    """
+    cage = obj.shapedeform.cage
+    owner = cage.shapedeform.rig if cage is not None else None
+    if owner is None:
+        return False
+    changed = False
+    for modifier in modifiers_of(obj):
+        ids = nodes.input_identifiers(modifier.node_group)
+        key = ids.get(nodes.OWNER_INPUT)
+        if key is not None and compat.modifier_input(modifier, key) != owner:
+            compat.set_modifier_input(modifier, key, owner)
+            changed = True
+    if changed:
+        obj.update_tag()
+    return changed
+
+
+# -- which rig ---------------------------------------------------------------------------------
+
+def is_owner(obj):
+    """``obj`` is bound and its cage is its own (not a duplicate following another's rig)."""
+    settings = obj.shapedeform
+    return settings.is_bound and settings.cage is not None and settings.cage.shapedeform.rig == obj.original
+
+
+def is_follower(obj):
+    """``obj`` is a duplicate of a rig's owner: it shows that rig's pose, it has no rig of its own."""
+    settings = obj.shapedeform
+    return settings.is_bound and settings.cage is not None and settings.cage.shapedeform.rig not in (None, obj.original)
+
+
+def is_legacy(obj):
+    """Bound by an older version of the extension, which wrote poses into the object's data."""
+    settings = obj.shapedeform
+    return settings.is_bound and settings.cage is None and not modifiers_of(obj)
+
+
+def owner_of(obj):
+    """The owner of the rig ``obj`` belongs to (itself, as handle, cage or follower), or None."""
+    if obj is None:
+        return None
+    settings = obj.shapedeform
+    if settings.rig is not None:  # a handle or a cage
+        return settings.rig if settings.rig.shapedeform.is_bound else None
+    if is_follower(obj):
+        return settings.cage.shapedeform.rig
+    return obj if settings.is_bound else None
+
+
+def rigged_object(context):
+    """The object the user means: the active object, or the rig of an active handle or cage."""
+    obj = context.active_object
+    if obj is not None and obj.shapedeform.rig is not None:
+        return obj.shapedeform.rig
+    return obj
+
+
+def rig_space(obj):
+    """World matrix (4, 4) of the owner's rig space: the cage's (the owner's at bind time)."""
+    cage = obj.shapedeform.cage
+    return np.array((cage if cage is not None else obj).matrix_world, dtype=np.float64)
+
+
+def is_baked(obj):
+    """Whether the owner ``obj`` plays a bake (the live rig then leaves it alone)."""
+    return BAKED in obj.shapedeform
+
+
+def owners(scene):
+    """Rig owners in ``scene``."""
+    return [o for o in scene.objects if is_owner(o)]
