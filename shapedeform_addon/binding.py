@@ -13,7 +13,7 @@ from .errors import RigError
 
 
 def bind(obj):
-    """Rig ``obj``; returns its :class:`rig.Rig`.
+    """Rig ``obj``; returns its :class:`rig.Rig` and advice for the user ("" when none).
 
     Raises
     ------
@@ -44,7 +44,7 @@ def bind(obj):
         # interface during renders (saved in the file, so farm and F12 renders are safe).
         scene.render.use_lock_interface = True
     rig.forget(obj)
-    return rig.get(obj)
+    return rig.get(obj), prepared.advice
 
 
 def _forget_settings(obj):

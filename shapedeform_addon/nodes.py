@@ -17,7 +17,9 @@ the deformed object's space with ``inverse(owner) @ cage``, both world matrices,
 owner is the bound object. A duplicate's modifier keeps both pointers, so it follows the same
 rig in its own space.
 
-A missing cage (deleted by hand) leaves the geometry as it is.
+A missing cage (deleted by hand) leaves the geometry as it is. The ``Refine`` input (0 by
+default) subdivides a mesh's faces before mapping: a long thin face spanning a bent stretch
+otherwise keeps straight edges and can flip although the map under it does not fold.
 
 The group is built from Python (no asset file to keep in step) and rebuilt when an older
 extension's group is found (``VERSION``).
@@ -33,7 +35,7 @@ POSED = "sd_posed"  # only inside the group, on the cage
 # A boolean attribute naming what the rig deforms (grease-pencil layers chosen at bind time, on
 # the LAYER domain); everything is deformed when it is missing.
 RIGGED = "sd_rigged"
-CAGE_INPUT, OWNER_INPUT = "Cage", "Owner"
+CAGE_INPUT, OWNER_INPUT, REFINE_INPUT = "Cage", "Owner", "Refine"
 
 
 def node_group():
@@ -96,10 +98,15 @@ def _build(group):
     group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     group.interface.new_socket(CAGE_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
     group.interface.new_socket(OWNER_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
+    refine = group.interface.new_socket(REFINE_INPUT, in_out="INPUT", socket_type="NodeSocketInt")
+    refine.description = ("Subdivide a mesh's faces this many times before deforming it, so long thin "
+                          "faces (text, n-gon fills) bend instead of folding; 0 keeps the mesh as it is")
+    refine.default_value, refine.min_value, refine.max_value = 0, 0, 6
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     b = _Builder(group)
     given = b.node("NodeGroupInput")
-    geometry, cage_object, owner_object = given.outputs[0], given.outputs[1], given.outputs[2]
+    cage_object, owner_object = given.outputs[1], given.outputs[2]
+    geometry = b.node("GeometryNodeSubdivideMesh", {"Mesh": given.outputs[0], "Level": given.outputs[3]}).outputs[0]
 
     # The cage in the deformed object's space: posed positions, and the rest as positions.
     cage = b.node("GeometryNodeObjectInfo", {"Object": cage_object}, transform_space="ORIGINAL")
@@ -163,6 +170,6 @@ def _build(group):
     faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.outputs["Geometry"]}, component="MESH")
     has_cage = b.node("FunctionNodeCompare", {"A": faces.outputs["Face Count"], "B": 0},
                       data_type="INT", operation="GREATER_THAN").outputs[0]
-    switch = b.node("GeometryNodeSwitch", {"Switch": has_cage, "False": geometry, "True": moved.outputs[0]},
+    switch = b.node("GeometryNodeSwitch", {"Switch": has_cage, "False": given.outputs[0], "True": moved.outputs[0]},
                     input_type="GEOMETRY")
     b.node("NodeGroupOutput", {0: switch.outputs[0]})

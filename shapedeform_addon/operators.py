@@ -24,11 +24,14 @@ class SHAPEDEFORM_OT_bind(bpy.types.Operator):
         if obj is not None and obj.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")
         try:
-            bound = binding.bind(obj)
+            bound, advice = binding.bind(obj)
         except RigError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
-        self.report({"INFO"}, f"Bound '{obj.name}': {bound.graph.n} graph points")
+        if advice:
+            self.report({"WARNING"}, f"Bound '{obj.name}' ({bound.graph.n} graph points); {advice}")
+        else:
+            self.report({"INFO"}, f"Bound '{obj.name}': {bound.graph.n} graph points")
         return {"FINISHED"}
 
 

@@ -42,11 +42,14 @@ class Prepared:
     graph : solver.Graph
     commit : callable(obj)
         Makes the changes binding needs beyond the rig's own (an image plane's cut-out).
+    advice : str
+        What the user should know about the bound result (empty when nothing).
     """
 
     plane: object
     graph: object
     commit: Callable = field(default=lambda obj: None)
+    advice: str = ""
 
 
 def module_for(obj):

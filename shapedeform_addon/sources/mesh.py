@@ -65,8 +65,8 @@ def prepare(obj, settings):
     on_faces = np.zeros(len(rest), dtype=bool)
     on_faces[tris.ravel()] = True
     mode = settings.graph_mode
+    well_shaped = smallest_angles(flat, tris).min() >= OWN_GRAPH_MIN_ANGLE
     if mode == "AUTO":
-        well_shaped = smallest_angles(flat, tris).min() >= OWN_GRAPH_MIN_ANGLE
         mode = "OWN" if len(rest) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped else "OUTLINE"
     try:
         if mode == "OWN":
@@ -78,7 +78,11 @@ def prepare(obj, settings):
             graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
-    return Prepared(plane, graph)
+    advice = ""
+    if not well_shaped:
+        advice = ("its long thin faces can fold where it bends hard: raise Refine on its Shape Deform "
+                  "modifier to subdivide them")
+    return Prepared(plane, graph, advice=advice)
 
 
 def unbind(obj):

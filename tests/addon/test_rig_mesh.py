@@ -199,3 +199,52 @@ def test_bad_input_is_refused_and_changes_nothing(addon, make, message):
         bpy.ops.shapedeform.bind()
     assert not obj.shapedeform.is_bound
     assert checks.snapshot() == before
+
+
+def _flipped_area_fraction(obj, rest_areas):
+    """Share of the evaluated mesh's area whose triangles turned over against ``rest_areas``."""
+    areas = _evaluated_signed_areas(obj)
+    flipped = np.sign(areas) != np.sign(rest_areas)
+    return float(np.abs(rest_areas[flipped]).sum() / np.abs(rest_areas).sum())
+
+
+def _evaluated_signed_areas(obj):
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    mesh.calc_loop_triangles()
+    points = checks.mesh_points(obj, mesh)[:, :2]
+    tris = np.array([t.vertices[:] for t in mesh.loop_triangles])
+    evaluated.to_mesh_clear()
+    return checks.signed_areas(points, tris)
+
+
+def test_long_thin_faces_are_flagged_at_bind_and_refine_keeps_them_from_folding(addon, capfd):
+    """Issue 15, item 5: slivers spanning a bent stretch keep straight edges and turn over,
+    although the map under them does not fold; the modifier's Refine subdivides them first."""
+    top = [(x, 0.3, 0.0) for x in np.linspace(0.0, 4.0, 9)]
+    mesh = bpy.data.meshes.new("Strip")  # a fan of triangles, each spanning the strip's length
+    mesh.from_pydata([(0.0, 0.0, 0.0), (4.0, 0.0, 0.0)] + top, [], [(0, 1, 10)] + [(0, 3 + i, 2 + i) for i in range(8)])
+    obj = bpy.data.objects.new("Strip", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert "long thin faces" in capfd.readouterr().out
+    checks.add_handle(obj, (0.1, 0.15, 0.0))
+    bend = checks.add_handle(obj, (3.9, 0.15, 0.0))
+    shape_deform = addon.shapedeform_addon
+    modifier = shape_deform.rig_format.modifiers_of(obj)[0]
+    refine = shape_deform.nodes.input_identifiers(modifier.node_group)["Refine"]
+    assert shape_deform.compat.modifier_input(modifier, refine) == 0  # off by default
+    flipped = {}
+    for level in (0, 3):
+        shape_deform.compat.set_modifier_input(modifier, refine, level)
+        obj.update_tag()
+        bend.location, bend.rotation_euler.z = (3.9, 0.15, 0.0), 0.0
+        bpy.context.view_layer.update()
+        rest_areas = _evaluated_signed_areas(obj)
+        bend.location, bend.rotation_euler.z = (2.0, 2.0, 0.0), 2.0
+        bpy.context.view_layer.update()
+        flipped[level] = _flipped_area_fraction(obj, rest_areas)
+    assert flipped[0] > 0.1
+    assert flipped[3] < 0.5 * flipped[0]
+    assert len(obj.data.vertices) == 11  # subdivided in the modifier only
