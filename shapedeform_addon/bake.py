@@ -90,12 +90,6 @@ def _write_keys(cage, frames, captured):
         _add_fcurve(bag, path, *zip(*keys))
 
 
-def is_baked(obj):
-    """Whether ``obj``'s rig plays a bake (the live rig then leaves its cage alone)."""
-    owner = rig_format.owner_of(obj)
-    return owner is not None and rig_format.is_baked(owner)
-
-
 def clear(obj):
     """Remove the bake of ``obj``'s rig; returns how many baked frames were removed."""
     owner = rig_format.owner_of(obj)

@@ -30,11 +30,6 @@ NAVIGATION = {"MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "TRACKPADPAN", "T
               "MOUSEROTATE", "MOUSESMARTZOOM", "NDOF_MOTION"}
 
 
-def rig_object(context):
-    """The rig the user means (:func:`rig_format.owner_of` the active object), or None."""
-    return rig_format.owner_of(context.active_object)
-
-
 def mouse_ray(region, region_3d, mouse):
     """World ray (origin, direction) under ``mouse`` (x, y in region pixels)."""
     origin = view3d_utils.region_2d_to_origin_3d(region, region_3d, mouse)
@@ -124,7 +119,7 @@ def begin(context, obj, ray, pin=False):
         return DragState(obj, handle, True, plane, hit, missing)
     # A handle deleted in the viewport lingers as an orphan (in no scene): never grab it.
     candidates = [item.object for item in settings.handles
-                  if item.object is not None and len(item.object.users_scene) > 0]
+                  if rig_format.present(item.object)]
     if not candidates:
         raise RigError(f"'{obj.name}' has no handles: add one, or Ctrl+click to pin the shape")
     centres = np.array([_matrix(h.matrix_world)[:3, 3] for h in candidates]).reshape(-1, 3)
@@ -271,7 +266,7 @@ class SHAPEDEFORM_OT_drag(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO", "BLOCKING"}
 
     def invoke(self, context, event):
-        obj = rig_object(context)
+        obj = rig_format.active_rig(context)
         if obj is None:
             self.report({"ERROR"}, "Select a bound object or one of its handles to drag")
             return {"CANCELLED"}

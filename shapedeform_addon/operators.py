@@ -43,8 +43,10 @@ class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
-        obj = rig_format.rigged_object(context)
-        if obj is None or not obj.shapedeform.is_bound:
+        active = context.active_object
+        # A duplicate that follows a rig stops following it; otherwise the rig the user means goes.
+        obj = active if active is not None and rig_format.is_follower(active) else rig_format.active_rig(context)
+        if obj is None:
             self.report({"ERROR"}, "The active object is not bound")
             return {"CANCELLED"}
         if obj.mode != "OBJECT":
@@ -69,8 +71,8 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
                                   description="World location of the handle (projected onto the shape's plane)")
 
     def execute(self, context):
-        active = rig_format.rigged_object(context)
-        obj = rig_format.owner_of(active)
+        active = context.active_object
+        obj = rig_format.active_rig(context)
         if obj is None:
             self.report({"ERROR"}, "Bind the object before adding handles")
             return {"CANCELLED"}

@@ -207,12 +207,9 @@ def owner_of(obj):
     return obj if settings.is_bound else None
 
 
-def rigged_object(context):
-    """The object the user means: the active object, or the rig of an active handle or cage."""
-    obj = context.active_object
-    if obj is not None and obj.shapedeform.rig is not None:
-        return obj.shapedeform.rig
-    return obj
+def active_rig(context):
+    """The rig the user means: :func:`owner_of` the active object (None when it has none)."""
+    return owner_of(context.active_object)
 
 
 def rig_space(obj):

@@ -3,8 +3,7 @@
 
 import bpy
 
-from .bake import is_baked
-from .rig_format import is_follower, rigged_object
+from .rig_format import active_rig, is_baked, is_follower
 
 
 class SHAPEDEFORM_UL_handles(bpy.types.UIList):
@@ -23,15 +22,16 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        obj = rigged_object(context)
-        if obj is None:
+        active = context.active_object
+        if active is None:
             layout.label(text="No active object")
             return
-        settings = obj.shapedeform
-        if is_follower(obj):
-            layout.label(text=f"Follows the rig of '{settings.cage.shapedeform.rig.name}'", icon="LINKED")
+        if is_follower(active):
+            layout.label(text=f"Follows the rig of '{active.shapedeform.cage.shapedeform.rig.name}'", icon="LINKED")
             layout.operator("shapedeform.unbind", text="Stop Following", icon="X")
             return
+        obj = active_rig(context) or active
+        settings = obj.shapedeform
         if not settings.is_bound:
             col = layout.column()
             col.prop(settings, "graph_mode")
