@@ -221,6 +221,13 @@ def rig_space(obj):
     return np.array((cage if cage is not None else obj).matrix_world, dtype=np.float64)
 
 
+def rig_to_object(obj):
+    """Matrix (4, 4) from the owner's rig space to its local space: identity until the user
+    applies a transform (Apply Transform moves the data and leaves the cage, a child, where it
+    is), then the transform the data got since binding."""
+    return np.linalg.solve(np.array(obj.matrix_world, dtype=np.float64), rig_space(obj))
+
+
 def is_baked(obj):
     """Whether the owner ``obj`` plays a bake (the live rig then leaves it alone)."""
     return BAKED in obj.shapedeform
