@@ -50,7 +50,7 @@ def bind(obj):
 def _forget_settings(obj):
     settings = obj.shapedeform
     rig_format.clear_graph(settings)
-    for key in (rig_format.BAKED, "gp_layers", "gp_frames", "baked_gp_frames"):
+    for key in (rig_format.BAKED, rig_format.RIGGED_KEY, "gp_layers", "gp_frames", "baked_gp_frames"):
         settings.pop(key, None)
     settings.is_bound = False
     settings.kind = ""
