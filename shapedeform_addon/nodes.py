@@ -50,7 +50,8 @@ def node_group():
     # Rebuilding gives the inputs new identifiers: carry each modifier's values over by name.
     users = [m for o in bpy.data.objects for m in o.modifiers if m.type == "NODES" and m.node_group == group]
     old = input_identifiers(group)
-    kept = [(m, {name: compat.modifier_input(m, key) for name, key in old.items()}) for m in users]
+    kept = [(m, {name: compat.modifier_input(m, key) for name, key in old.items()
+                 if name in (CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT)}) for m in users]  # not the geometry
     _build(group)
     group[VERSION_KEY] = VERSION
     new = input_identifiers(group)
