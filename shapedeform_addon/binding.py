@@ -50,7 +50,7 @@ def bind(obj):
 def _forget_settings(obj):
     settings = obj.shapedeform
     rig_format.clear_graph(settings)
-    for key in (rig_format.BAKED, "gp_layers", "gp_frames", "baked_gp_frames"):
+    for key in (rig_format.BAKED, rig_format.RIGGED_KEY, "gp_layers", "gp_frames", "baked_gp_frames"):
         settings.pop(key, None)
     settings.is_bound = False
     settings.kind = ""
@@ -89,15 +89,15 @@ def unbind(obj):
         return lost
     source = sources.module_for(obj)
     if settings.cage is None:
-        lost = source.restore_legacy(obj)
+        lost = source.restore_legacy(obj) + source.unbind(obj)
     else:
         bake.clear(obj)
+        lost += source.unbind(obj)  # while the cage is there: it tells what transform was applied
         cage = settings.cage
         mesh = cage.data
         bpy.data.objects.remove(cage)
         if mesh.users == 0:
             bpy.data.meshes.remove(mesh)
-    lost += source.unbind(obj)
     _forget_settings(obj)
     handles.remove_all(obj)
     rig.forget(obj)

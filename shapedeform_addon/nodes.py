@@ -22,20 +22,24 @@ default) subdivides a mesh's faces before mapping: a long thin face spanning a b
 otherwise keeps straight edges and can flip although the map under it does not fold.
 
 The group is built from Python (no asset file to keep in step) and rebuilt when an older
-extension's group is found (``VERSION``).
+extension's group is found (``VERSION``); the modifiers that use it keep their inputs.
 """
 
 import bpy
 
+from . import compat
+
 GROUP_NAME = "Shape Deform"
-VERSION = 1
+VERSION = 3
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
-# A boolean attribute naming what the rig deforms (grease-pencil layers chosen at bind time, on
-# the LAYER domain); everything is deformed when it is missing.
+# The name of a boolean attribute naming what the rig deforms (grease-pencil layers chosen at
+# bind time, on the LAYER domain), given to each modifier (``RIGGED_INPUT``): objects sharing
+# their data each have their own; everything is deformed when it is missing or the name empty.
+# A modifier made by version 1 of the group, which had no such input, reads ``RIGGED``.
 RIGGED = "sd_rigged"
-CAGE_INPUT, OWNER_INPUT, REFINE_INPUT = "Cage", "Owner", "Refine"
+CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT, REFINE_INPUT = "Cage", "Owner", "Rigged Layers", "Refine"
 
 
 def node_group():
@@ -45,8 +49,20 @@ def node_group():
         return group
     if group is None or group.bl_idname != "GeometryNodeTree":
         group = bpy.data.node_groups.new(GROUP_NAME, "GeometryNodeTree")
+    # Rebuilding gives the inputs new identifiers: carry each modifier's values over by name.
+    users = [m for o in bpy.data.objects for m in o.modifiers if m.type == "NODES" and m.node_group == group]
+    old = input_identifiers(group)
+    kept = [(m, {name: compat.modifier_input(m, key) for name, key in old.items()
+                 if name in (CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT, REFINE_INPUT)}) for m in users]  # not the geometry
     _build(group)
     group[VERSION_KEY] = VERSION
+    new = input_identifiers(group)
+    for modifier, values in kept:
+        for name, value in values.items():
+            if name in new and value is not None:
+                compat.set_modifier_input(modifier, new[name], value)
+        if RIGGED_INPUT not in old:
+            compat.set_modifier_input(modifier, new[RIGGED_INPUT], RIGGED)
     return group
 
 
@@ -98,6 +114,7 @@ def _build(group):
     group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     group.interface.new_socket(CAGE_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
     group.interface.new_socket(OWNER_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
+    group.interface.new_socket(RIGGED_INPUT, in_out="INPUT", socket_type="NodeSocketString")
     refine = group.interface.new_socket(REFINE_INPUT, in_out="INPUT", socket_type="NodeSocketInt")
     refine.description = ("Subdivide a mesh's faces this many times before deforming it, so long thin "
                           "faces (text, n-gon fills) bend instead of folding; 0 keeps the mesh as it is")
@@ -105,8 +122,8 @@ def _build(group):
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     b = _Builder(group)
     given = b.node("NodeGroupInput")
-    cage_object, owner_object = given.outputs[1], given.outputs[2]
-    geometry = b.node("GeometryNodeSubdivideMesh", {"Mesh": given.outputs[0], "Level": given.outputs[3]}).outputs[0]
+    cage_object, owner_object, rigged_name = (given.outputs[name] for name in (CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT))
+    geometry = b.node("GeometryNodeSubdivideMesh", {"Mesh": given.outputs[0], "Level": given.outputs[REFINE_INPUT]}).outputs[0]
 
     # The cage in the deformed object's space: posed positions, and the rest as positions.
     cage = b.node("GeometryNodeObjectInfo", {"Object": cage_object}, transform_space="ORIGINAL")
@@ -148,7 +165,7 @@ def _build(group):
                         data_type="FLOAT4X4", domain="FACE").outputs[0]
         return b.node("FunctionNodeTransformPoint", [point, matrix]).outputs[0]
 
-    rigged = b.node("GeometryNodeInputNamedAttribute", {"Name": RIGGED}, data_type="BOOLEAN")
+    rigged = b.node("GeometryNodeInputNamedAttribute", {"Name": rigged_name}, data_type="BOOLEAN")
     unmarked = b.node("FunctionNodeBooleanMath", [rigged.outputs["Exists"]], operation="NOT").outputs[0]
     selection = b.node("FunctionNodeBooleanMath", [unmarked, rigged.outputs[0]], operation="OR").outputs[0]
 

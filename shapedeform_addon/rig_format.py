@@ -10,14 +10,16 @@ On the bound object (the rig's *owner*), ``obj.shapedeform``:
     those points in the handle's frame when it was added), and as ID properties the plane
     (``plane``, 12 numbers) and the graph (``graph_points``, ``graph_edges``, ``graph_loops``
     with ``graph_loop_sizes``, ``graph_triangles``), stored rather than rebuilt so that a file
-    opens with exactly the graph it was rigged with.
+    opens with exactly the graph it was rigged with; for grease pencil ``rigged_attribute``,
+    the name of the LAYER attribute marking the layers it deforms (one per rig, as objects
+    sharing their data may rig different layers; "" when it deforms them all).
 The cage, a mesh object parented to the owner (or copying its transform) and hidden:
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
     space when it was bound), its point attribute ``sd_rest`` the rest, ``shapedeform.rig``
     the owner. A bake is shape keys on its mesh (:mod:`.bake`).
 Every object the rig deforms (the owner, and duplicates of it):
-    a Geometry Nodes modifier with the group of :mod:`.nodes`, whose inputs name the cage and
-    the owner.
+    a Geometry Nodes modifier with the group of :mod:`.nodes`, whose inputs name the cage,
+    the owner and the layer attribute.
 
 A duplicate of the owner (Shift+D, Alt+D) copies its settings and modifier: it *follows* the
 owner's rig (same cage, same handles) and is never posed on its own.
@@ -34,6 +36,9 @@ from .errors import RigError
 GRAPH_KEYS = ("plane", "graph_points", "graph_edges", "graph_loops", "graph_loop_sizes", "graph_triangles")
 MODIFIER_NAME = "Shape Deform"
 BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that plays
+# On the owner's settings: the name of the attribute marking the grease-pencil layers its rig
+# deforms ("" for all of them); the modifier is given the same name.
+RIGGED_KEY = "rigged_attribute"
 
 
 # -- the graph and the plane ------------------------------------------------------------------
@@ -143,6 +148,7 @@ def add_modifier(obj, cage, owner):
     ids = nodes.input_identifiers(group)
     compat.set_modifier_input(modifier, ids[nodes.CAGE_INPUT], cage)
     compat.set_modifier_input(modifier, ids[nodes.OWNER_INPUT], owner)
+    compat.set_modifier_input(modifier, ids[nodes.RIGGED_INPUT], owner.shapedeform.get(RIGGED_KEY, ""))
     return modifier
 
 
@@ -216,6 +222,13 @@ def rig_space(obj):
     """World matrix (4, 4) of the owner's rig space: the cage's (the owner's at bind time)."""
     cage = obj.shapedeform.cage
     return np.array((cage if cage is not None else obj).matrix_world, dtype=np.float64)
+
+
+def rig_to_object(obj):
+    """Matrix (4, 4) from the owner's rig space to its local space: identity until the user
+    applies a transform (Apply Transform moves the data and leaves the cage, a child, where it
+    is), then the transform the data got since binding."""
+    return np.linalg.solve(np.array(obj.matrix_world, dtype=np.float64), rig_space(obj))
 
 
 def is_baked(obj):

@@ -5,8 +5,9 @@ The graph is built inside the silhouette of the current frame's strokes (each sw
 radius, closed strokes filled). The drawings are never written: the Shape Deform modifier maps
 the points of every drawing of every keyframe, the animator's later drawings too, in layer space
 (Geometry Nodes do not see layer transforms); stroke radii keep their size. When only some
-layers are chosen, a boolean LAYER attribute (``sd_rigged``) marks them and the modifier
-deforms only those.
+layers are chosen, a boolean LAYER attribute (``sd_rigged``, or ``sd_rigged.001`` and so on
+when another object's rig on the same data has that name) marks them and the modifier deforms
+only those.
 
 An older version wrote poses into the drawings of the frame it was bound on, keeping their
 rest in each drawing's ``sd_rest`` attribute and the drawings' (layer, frame) on
@@ -20,6 +21,7 @@ from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from . import Prepared, RigError
 from ..nodes import RIGGED
+from ..rig_format import RIGGED_KEY
 from .mesh import REST_ATTRIBUTE, read_vectors
 
 # Strokes thinner than this fraction of the drawing's size are swept this wide, so a hairline
@@ -97,15 +99,22 @@ def prepare(obj, settings):
     chosen = {layer.name for layer, _ in frames} if settings.layers.strip() else None
 
     def commit(o):
+        name = ""
         if chosen is not None:
+            name, number = RIGGED, 0
+            while name in o.data.attributes:  # another rig of this data marks its own layers
+                number += 1
+                name = f"{RIGGED}.{number:03d}"
             marks = np.array([layer.name in chosen for layer in o.data.layers], dtype=bool)
-            o.data.attributes.new(RIGGED, "BOOLEAN", "LAYER").data.foreach_set("value", marks)
+            o.data.attributes.new(name, "BOOLEAN", "LAYER").data.foreach_set("value", marks)
+        o.shapedeform[RIGGED_KEY] = name
 
     return Prepared(plane, graph, commit)
 
 
 def unbind(obj):
-    attribute = obj.data.attributes.get(RIGGED)
+    name = obj.shapedeform.get(RIGGED_KEY, RIGGED)  # rigs bound before the key was kept used RIGGED
+    attribute = obj.data.attributes.get(name) if name else None
     if attribute is not None:
         obj.data.attributes.remove(attribute)
     return []

@@ -10,11 +10,13 @@ given back on unbind, untouched; the cut-out is then deleted.
 
 import bpy
 import numpy as np
+from mathutils import Matrix
 
 from ...solver.outline import outline_graph
 from ...solver.rigging.handles import apply_affine
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import fit_affine, image_cutout
+from .. import rig_format
 from . import Prepared, RigError, mesh as mesh_source
 
 # Shared with meshes once the cut-out is in place.
@@ -80,12 +82,21 @@ def prepare(obj, settings):
 
 
 def unbind(obj):
+    """Give the quad back, with any transform applied to the cut-out since binding (Apply
+    Rotation & Scale) applied to it too, so the picture stays where it is. Call while the
+    rig's cage exists."""
     original = obj.shapedeform.original_data
     if original is None:
         return []
+    applied = rig_format.rig_to_object(obj)
     cutout = obj.data
     obj.data = original
     obj.shapedeform.original_data = None
+    if not np.allclose(applied, np.eye(4), rtol=0.0, atol=1e-6):
+        if original.users > 1:  # another object shows this quad: apply to a copy
+            obj.data = original.copy()
+        obj.data.transform(Matrix(applied.tolist()))
+        obj.data.update()
     if cutout.users == 0:
         bpy.data.meshes.remove(cutout)
     return []

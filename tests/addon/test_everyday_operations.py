@@ -1,0 +1,666 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Everyday operations on a rigged object behave as they do under the Armature modifier
+(issue 15, item 2): shared data, Edit Mode, deleting and adding vertices, Apply Rotation &
+Scale, the user's own shape keys, parenting, non-uniform scale, undo and redo, save and reload.
+
+Every check reads back what Blender evaluated. Where the design before the modifier (which
+wrote each pose into the object's data) went wrong, the issue's defect is named in the test.
+"""
+
+import bmesh
+import bpy
+import numpy as np
+import pytest
+from mathutils import Matrix, Vector
+
+import rig_checks as checks
+from test_rig_curve import curve_points, evaluated_vertices, text_curve
+from test_rig_image_plane import import_picture
+from test_rig_mesh import grid
+
+
+# -- the kinds of object -----------------------------------------------------------------------
+
+def make_mesh(tmp_path):
+    return grid()
+
+
+def make_image_plane(tmp_path):
+    obj, _ = import_picture(tmp_path)
+    obj.rotation_euler = (1.2, 0.0, 0.3)
+    bpy.context.view_layer.update()
+    return obj
+
+
+def make_curve(tmp_path):
+    return text_curve("I")  # filled: reaches the modifier as its tessellated mesh
+
+
+def make_bezier(tmp_path):
+    bpy.ops.curve.primitive_bezier_curve_add(location=(0.3, 0.2, 0.1))
+    return bpy.context.active_object  # open, not filled: reaches the modifier as a curve
+
+
+def make_grease_pencil(tmp_path):
+    bpy.ops.object.grease_pencil_add(type="MONKEY", location=(0.2, -0.4, 0.3))
+    return bpy.context.active_object  # drawn in the XZ plane
+
+
+MESHES = [pytest.param(make_mesh, id="mesh"), pytest.param(make_image_plane, id="image plane")]
+ALL = MESHES + [pytest.param(make_curve, id="curve"), pytest.param(make_grease_pencil, id="grease pencil")]
+
+
+def data_points(obj):
+    """The object's own points (p, 3), local: what the user modelled, never a pose."""
+    if obj.type == "MESH":
+        return checks.mesh_points(obj).copy()
+    if obj.type == "CURVE":
+        return np.concatenate([p[:, :3] for p in curve_points(obj)])
+    return np.concatenate([checks.drawing_points(layer.current_frame().drawing) for layer in obj.data.layers])
+
+
+def evaluated(obj):
+    """What Blender evaluated (p, 3), in the object's local space, modifiers applied."""
+    if obj.type == "MESH":
+        return checks.evaluated_mesh_points(obj).astype(np.float64)
+    if obj.type == "CURVE":
+        return evaluated_vertices(obj)
+    return checks.evaluated_drawing_points(obj).astype(np.float64)
+
+
+def to_world(obj, local):
+    m = np.array(obj.matrix_world)
+    return local @ m[:3, :3].T + m[:3, 3]
+
+
+def size_of(points):
+    return float(np.linalg.norm(np.ptp(points, axis=0)))
+
+
+class Rigged:
+    """A bound object with a handle at each end of its longest local axis; ``move`` drags the
+    second handle across that axis, in the object's local space."""
+
+    def __init__(self, obj):
+        self.obj = obj
+        bpy.context.view_layer.objects.active = obj
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+        rest = evaluated(obj)
+        spread = np.ptp(rest, axis=0)
+        self.normal, self.long = int(np.argmin(spread)), int(np.argmax(spread))
+        self.across = 3 - self.normal - self.long
+        self.ends = rest[np.argmin(rest[:, self.long])], rest[np.argmax(rest[:, self.long])]
+        self.first = checks.add_handle(obj, checks.world(obj, self.ends[0]))
+        self.second = checks.add_handle(obj, checks.world(obj, self.ends[1]))
+        self.size = size_of(rest)
+
+    def local_axis(self, axis):
+        v = np.zeros(3)
+        v[axis] = 1.0
+        return v
+
+    def move(self, distance, handle=None):
+        """Move a handle (the second by default) across the shape, in the object's local space."""
+        handle = self.second if handle is None else handle
+        step = np.array(self.obj.matrix_world.to_3x3()) @ (distance * self.local_axis(self.across))
+        handle.matrix_world.translation = handle.matrix_world.translation + Vector(step)
+        bpy.context.view_layer.update()
+
+
+def through_cage(obj, points):
+    """Where the rig maps ``points`` (p, 3, local, inside the cage's outline): the affine map of
+    the rest triangle under each point, which keeps its height above the plane (the reference
+    of :mod:`shapedeform_addon.nodes`, computed here from the cage Blender holds)."""
+    cage = obj.shapedeform.cage
+    owner = cage.shapedeform.rig
+    m = np.linalg.inv(np.array(owner.matrix_world)) @ np.array(cage.matrix_world)
+    rest = np.empty(len(cage.data.vertices) * 3, np.float32)
+    cage.data.attributes["sd_rest"].data.foreach_get("vector", rest)
+    rest = rest.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+    posed = checks.mesh_points(cage).astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+    tris = checks.triangles(cage)
+    a = rest[tris[:, 0]]
+    e1, e2 = rest[tris[:, 1]] - a, rest[tris[:, 2]] - a
+    normal = np.cross(e1, e2)
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    frames = np.stack([e1, e2, normal], axis=-1)  # (t, 3, 3), columns
+    st = np.linalg.solve(frames[None], (points[:, None, :] - a[None])[..., None])[..., 0]  # (p, t, 3)
+    s, t, h = st[..., 0], st[..., 1], st[..., 2]
+    inside = np.minimum.reduce([s, t, 1 - s - t])
+    k = np.argmax(inside, axis=1)
+    rows = np.arange(len(points))
+    outside = np.flatnonzero(inside[rows, k] <= -1e-6)
+    assert len(outside) == 0, f"points {outside} of {len(points)} are outside the cage (the reference maps only inside)"
+    pa, pb, pc = (posed[tris[k, j]] for j in range(3))
+    return pa + s[rows, k, None] * (pb - pa) + t[rows, k, None] * (pc - pa) + h[rows, k, None] * normal[k]
+
+
+@pytest.fixture
+def quiet(capfd):
+    """Fails the test when anything printed a traceback (an exception in a handler is only
+    printed by Blender, never raised to the caller)."""
+    yield
+    out, err = capfd.readouterr()
+    assert "Traceback" not in out + err, out + err
+
+
+def activate(obj):
+    """Make ``obj`` the only selected object and the active one (as clicking it does)."""
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+
+
+def unbind(obj):
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+
+
+# -- shared data -------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("make", [pytest.param(make_mesh, id="mesh"), pytest.param(make_curve, id="curve"),
+                                  pytest.param(make_grease_pencil, id="grease pencil")])
+def test_two_objects_sharing_data_each_have_their_own_rig(addon, make, tmp_path, quiet):
+    """Issue 15, defect 2: binding the second object while the first is posed wrote the posed
+    shape into the shared rest; unbinding then broke the other rig. (An image plane shares no
+    data once bound: binding gives it a cut-out of its own.)"""
+    first = make(tmp_path)
+    first.name = "First"
+    own = data_points(first)
+    shape = evaluated(first)
+    one = Rigged(first)
+    one.move(0.3)
+    posed_first = evaluated(first)
+    assert np.abs(posed_first - shape).max() > 0.1
+
+    second = bpy.data.objects.new("Second", first.data)  # shares the data, not a duplicate
+    bpy.context.scene.collection.objects.link(second)
+    second.matrix_world = first.matrix_world
+    second.location.x += 3.0
+    bpy.context.view_layer.update()
+    two = Rigged(second)
+    assert second.data == first.data
+    assert data_points(first).tobytes() == own.tobytes()  # the shared data is still the rest
+    np.testing.assert_allclose(evaluated(second), shape, atol=1e-5)  # bound at rest, not at the first's pose
+    np.testing.assert_allclose(evaluated(first), posed_first, atol=1e-6)
+    assert {h.object for h in second.shapedeform.handles}.isdisjoint({h.object for h in first.shapedeform.handles})
+    assert second.shapedeform.cage not in (None, first.shapedeform.cage)
+
+    two.move(-0.3)  # each rig poses its own object only
+    posed_second = evaluated(second)
+    assert np.abs(posed_second - shape).max() > 0.1
+    assert np.abs(posed_second - posed_first).max() > 0.1
+    np.testing.assert_allclose(evaluated(first), posed_first, atol=1e-6)
+    assert data_points(first).tobytes() == own.tobytes()
+
+    unbind(first)
+    assert evaluated(first).tobytes() == shape.tobytes()
+    assert data_points(second).tobytes() == own.tobytes()
+    np.testing.assert_allclose(evaluated(second), posed_second, atol=1e-6)
+    two.move(-0.2)  # the other rig still poses
+    assert second.shapedeform.status == ""
+    assert np.abs(evaluated(second) - posed_second).max() > 0.1
+    assert evaluated(first).tobytes() == shape.tobytes()
+    assert data_points(second).tobytes() == own.tobytes()
+
+
+def layer_points(obj):
+    return {layer.name: checks.evaluated_drawing_points(obj, layer.name).astype(np.float64) for layer in obj.data.layers}
+
+
+def test_grease_pencils_sharing_data_deform_their_own_layers(addon, quiet):
+    """Two grease-pencil objects share their data: the first's rig deforms only the layer
+    chosen for it, the second's every layer. Neither rig's choice changes the other's, and
+    unbinding the first leaves the second as it was (its layer marks used to be one attribute
+    of the shared data, so the second deformed only the first's layer until the first was
+    unbound)."""
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    first = bpy.context.active_object
+    first.shapedeform.layers = "Lines"
+    rest = layer_points(first)
+    second = bpy.data.objects.new("Second", first.data)
+    bpy.context.scene.collection.objects.link(second)
+    one = Rigged(first)
+    two = Rigged(second)
+    one.move(0.3)
+    two.move(-0.3)
+    shown = {obj.name: layer_points(obj) for obj in (first, second)}
+    assert shown[first.name]["Fills"].tobytes() == rest["Fills"].tobytes()  # not chosen for the first
+    for layer in ("Fills", "Lines"):
+        assert np.abs(shown[second.name][layer] - rest[layer]).max() > 0.2, layer
+    assert np.abs(shown[first.name]["Lines"] - rest["Lines"]).max() > 0.2
+
+    unbind(first)
+    for layer in ("Fills", "Lines"):
+        assert layer_points(first)[layer].tobytes() == rest[layer].tobytes()
+        np.testing.assert_allclose(layer_points(second)[layer], shown[second.name][layer], atol=1e-6)
+    unbind(second)
+    assert not any(a.name.startswith("sd_rigged") for a in first.data.attributes)
+
+
+# -- Edit Mode ---------------------------------------------------------------------------------
+
+def interior_vertices(bm, count):
+    """``count`` vertices off the border, with a step that keeps them inside their faces."""
+    inner = [v for v in bm.verts if not v.is_boundary and v.link_faces]
+    centre = sum((v.co for v in inner), Vector()) / len(inner)
+    inner.sort(key=lambda v: (v.co - centre).length)
+    chosen = inner[:count]
+    step = 0.2 * min(e.calc_length() for v in chosen for e in v.link_edges)
+    return chosen, step
+
+
+@pytest.mark.parametrize("make", MESHES)
+def test_edit_mode_edits_change_the_rest_and_show_deformed(addon, make, tmp_path, quiet):
+    """Issue 15, defect 3: Edit Mode showed the pose and threw every edit away on leaving it.
+    Now the edits are the object's rest shape and the modifier shows them deformed, in Edit
+    Mode too; moving a handle meanwhile raises nothing."""
+    obj = make(tmp_path)
+    rig = Rigged(obj)
+    rig.move(0.3)
+    rest = data_points(obj)
+    activate(obj)
+    bpy.ops.object.mode_set(mode="EDIT")
+    bm = bmesh.from_edit_mesh(obj.data)
+    bm.verts.ensure_lookup_table()
+    chosen, step = interior_vertices(bm, 3)
+    moved = [v.index for v in chosen]
+    offsets = np.zeros((3, 3))
+    offsets[0, rig.long] = step            # slid in the plane
+    offsets[1, rig.across] = -step
+    offsets[2, rig.normal] = 0.1 * rig.size  # lifted off the plane
+    for v, offset in zip(chosen, offsets):
+        v.co += Vector(offset)
+    bmesh.update_edit_mesh(obj.data)
+    edited = rest.copy()
+    edited[moved] += offsets
+
+    rig.move(0.1)  # a handle moved while the object is in Edit Mode
+    assert obj.shapedeform.status == ""
+    shown = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh()
+    in_edit_mode = np.array([v.co for v in shown.vertices])  # what Edit Mode shows (no 'position' there)
+    obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh_clear()
+
+    bpy.ops.object.mode_set(mode="OBJECT")
+    np.testing.assert_allclose(data_points(obj), edited, atol=1e-6)  # the edits are the rest now
+    unmoved = np.setdiff1d(np.arange(len(rest)), moved)
+    assert data_points(obj)[unmoved].tobytes() == rest[unmoved].tobytes()
+    np.testing.assert_allclose(in_edit_mode, through_cage(obj, edited), atol=1e-5)  # shown deformed in Edit Mode
+    posed = evaluated(obj)
+    np.testing.assert_allclose(posed, through_cage(obj, edited), atol=1e-5)
+    before_edit = through_cage(obj, rest)
+    shift = np.linalg.norm(posed[moved] - before_edit[moved], axis=1)
+    np.testing.assert_allclose(shift, np.linalg.norm(offsets, axis=1), rtol=0.5)  # visible, about as big
+    assert posed[moved[2], rig.normal] - posed[unmoved, rig.normal].mean() == pytest.approx(0.1 * rig.size, rel=1e-3)
+    assert np.abs(posed - through_cage(obj, data_points(obj))).max() < 1e-5
+    rig.move(0.1)
+    assert obj.shapedeform.status == ""
+    np.testing.assert_allclose(evaluated(obj), through_cage(obj, edited), atol=1e-5)
+
+
+@pytest.mark.parametrize("make", MESHES)
+def test_deleting_and_adding_vertices_in_edit_mode(addon, make, tmp_path, quiet):
+    """Issue 15, defect 4: deleting a vertex made every later update raise inside the depsgraph
+    and frame handlers. Now the modifier maps whatever vertices the mesh has."""
+    obj = make(tmp_path)
+    rig = Rigged(obj)
+    scene = bpy.context.scene
+    rig.second.keyframe_insert("location", frame=1)
+    rig.move(0.3)
+    rig.second.keyframe_insert("location", frame=10)
+    scene.frame_set(10)
+
+    activate(obj)
+    bpy.ops.object.mode_set(mode="EDIT")
+    bm = bmesh.from_edit_mesh(obj.data)
+    bm.verts.ensure_lookup_table()
+    handle_point = np.array(rig.ends[1])
+    nearest = min(bm.verts, key=lambda v: (np.array(v.co) - handle_point) @ (np.array(v.co) - handle_point))
+    chosen, step = interior_vertices(bm, 6)
+    keep = chosen[-1].co.copy()
+    bmesh.ops.delete(bm, geom=chosen[:4] + [nearest], context="VERTS")  # a hole, and the handle's vertex
+    new = [bm.verts.new(keep + Vector(d)) for d in ((step, 0, 0), (0, step, 0), (step, step, 0))]
+    bm.faces.new(new)
+    loose = handle_point + rig.local_axis(rig.long) * 0.2 * rig.size
+    bm.verts.new(Vector(loose))  # a loose vertex, off the shape
+    bmesh.update_edit_mesh(obj.data)
+    count = len(bm.verts)
+    rig.move(0.1)
+    assert obj.shapedeform.status == ""
+    bpy.ops.object.mode_set(mode="OBJECT")
+
+    assert len(obj.data.vertices) == count
+    data = data_points(obj)
+    on_shape = np.linalg.norm(data - loose, axis=1) > 1e-6
+    assert on_shape.sum() == count - 1
+    for frame in (10, 4, 1, 7):
+        scene.frame_set(frame)
+        assert obj.shapedeform.status == "", f"frame {frame}"
+        posed = evaluated(obj)
+        assert len(posed) == count and np.all(np.isfinite(posed)), f"frame {frame}"
+        np.testing.assert_allclose(posed[on_shape], through_cage(obj, data[on_shape]), atol=1e-5,
+                                   err_msg=f"frame {frame}")
+    rig.move(-0.2)
+    assert obj.shapedeform.status == ""
+    posed = evaluated(obj)
+    assert len(posed) == count and np.all(np.isfinite(posed))
+
+
+# -- Apply transforms --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("make", ALL)
+def test_apply_rotation_and_scale_keeps_the_shape_and_the_rig(addon, make, tmp_path, quiet):
+    """Issue 15, defect 5: Apply Rotation & Scale made the shape jump, and after Unbind it was
+    far from where it was. Now the applied data is the object's own rest, the world shape does
+    not move, the handles still drive it, and Unbind leaves the data as applied."""
+    obj = make(tmp_path)
+    obj.rotation_euler = (0.4, -0.3, 0.7)
+    obj.scale = (1.5, 0.7, 1.2)
+    bpy.context.view_layer.update()
+    rig = Rigged(obj)
+    own = data_points(obj)  # (an image plane's is its cut-out, once bound)
+    before = np.array(obj.matrix_world.to_3x3())
+    rig.move(0.3)
+    world_before = to_world(obj, evaluated(obj))
+    handle_before = np.array(rig.second.matrix_world.translation)
+    quad = obj.shapedeform.original_data  # an image plane's quad, kept for unbind
+    quad_world = None if quad is None else (checks.mesh_points(obj, quad) @ np.array(obj.matrix_world)[:3, :3].T
+                                            + np.array(obj.matrix_world)[:3, 3])
+
+    activate(obj)
+    # Blender applies no rotation to a 2D curve ("Rotation/Location cannot apply to a 2D curve").
+    rotation = obj.type != "CURVE" or obj.data.dimensions == "3D"
+    assert bpy.ops.object.transform_apply(location=False, rotation=rotation, scale=True) == {"FINISHED"}
+    bpy.context.view_layer.update()
+    applied = data_points(obj)
+    applied_by = np.linalg.solve(np.array(obj.matrix_world.to_3x3()), before)
+    if rotation:
+        np.testing.assert_allclose(np.array(obj.matrix_world.to_3x3()), np.eye(3), atol=1e-6)
+    assert np.abs(applied_by - np.eye(3)).max() > 0.2  # something was applied
+    np.testing.assert_allclose(applied, own @ applied_by.T, atol=1e-5 * rig.size)
+    np.testing.assert_allclose(to_world(obj, evaluated(obj)), world_before, atol=1e-5 * rig.size)  # no jump
+    np.testing.assert_allclose(rig.second.matrix_world.translation, handle_before, atol=1e-6)
+    assert obj.shapedeform.status == ""
+
+    # The handles still drive it: the point under the moved handle follows it in world space.
+    under = np.argmin(np.linalg.norm(world_before - handle_before, axis=1))
+    step = applied_by @ rig.local_axis(rig.across) * 0.2
+    rig.second.matrix_world.translation = Vector(handle_before + step)
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    world_after = to_world(obj, evaluated(obj))
+    assert np.abs(world_after - world_before).max() > 0.1
+    exact = obj.type == "MESH" and obj.shapedeform.kind == "MESH"
+    reached = np.linalg.norm(world_after[under] - (handle_before + step))
+    assert reached < (1e-4 if exact else 0.03) * size_of(world_before)
+
+    unbind(obj)
+    assert not obj.modifiers
+    if quad is None:
+        assert data_points(obj).tobytes() == applied.tobytes()  # the object's own, never a pose
+    else:  # an image plane gets its quad back, applied as its cut-out was: the picture stays put
+        assert len(obj.data.vertices) == 4
+        np.testing.assert_allclose(to_world(obj, data_points(obj)), quad_world, atol=1e-5)
+
+
+# -- shape keys --------------------------------------------------------------------------------
+
+def test_the_users_shape_keys_are_deformed_and_left_alone(addon, quiet):
+    """Issue 15, defect 6: a mesh with its own shape keys bound and never visibly deformed
+    (under shape keys, Blender ignores the base positions the pose was written to). Now the
+    evaluated shape is the keyed shape deformed: the key's offsets show, a vertex the key lifts
+    keeps its height; the keys are left as they were."""
+    obj = grid()
+    obj.shape_key_add(name="Basis")
+    key = obj.shape_key_add(name="Smile", from_mix=False)
+    basis = data_points(obj)
+    bm = bmesh.new()
+    bm.from_mesh(obj.data)
+    chosen, step = interior_vertices(bm, 3)
+    moved = [v.index for v in chosen]
+    bm.free()
+    offsets = np.array([[step, 0, 0], [0, -step, 0], [0, 0, 0.3]])
+    for i, offset in zip(moved, offsets):
+        key.data[i].co += Vector(offset)
+    key.value = 1.0
+    bpy.context.view_layer.update()
+    keyed = basis.copy()
+    keyed[moved] += offsets
+    np.testing.assert_allclose(evaluated(obj), keyed, atol=1e-6)  # the user's key shows
+    blocks = [b.name for b in obj.data.shape_keys.key_blocks]
+
+    def key_data():
+        out = []
+        for block in obj.data.shape_keys.key_blocks:
+            flat = np.empty(len(block.data) * 3, np.float32)
+            block.data.foreach_get("co", flat)
+            out.append(flat.tobytes())
+        return out
+
+    saved = key_data()
+    rig = Rigged(obj)
+    rig.move(0.4)
+    assert obj.shapedeform.status == ""
+    posed = evaluated(obj)
+    assert np.abs(posed - keyed).max() > 0.2  # it deforms
+    np.testing.assert_allclose(posed, through_cage(obj, keyed), atol=1e-5)  # the keyed shape, deformed
+    unkeyed = through_cage(obj, basis)
+    shift = np.linalg.norm(posed[moved] - unkeyed[moved], axis=1)
+    np.testing.assert_allclose(shift, np.linalg.norm(offsets, axis=1), rtol=0.5)  # the key's offsets show
+    assert posed[moved[2], 2] == pytest.approx(0.3, abs=1e-5)  # its height above the plane is kept
+    assert key_data() == saved and [b.name for b in obj.data.shape_keys.key_blocks] == blocks
+    assert data_points(obj).tobytes() == basis.tobytes()
+    assert obj.data.shape_keys.key_blocks["Smile"].value == 1.0
+
+    key.value = 0.0  # the key still works under the rig
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(evaluated(obj), unkeyed, atol=1e-5)
+    key.value = 1.0
+    unbind(obj)
+    np.testing.assert_allclose(evaluated(obj), keyed, atol=1e-6)
+    assert key_data() == saved
+
+
+# -- parenting ---------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("make", ALL)
+def test_parent_moves_the_posed_shape_rigidly(addon, make, tmp_path, quiet):
+    """Parented to an Empty (Ctrl+P, keep transform), the rigged object moves with it: the
+    evaluated shape moves rigidly, the local pose does not change."""
+    obj = make(tmp_path)
+    rig = Rigged(obj)
+    rig.move(0.3)
+    local = evaluated(obj)
+    world = to_world(obj, local)
+    bpy.ops.object.empty_add(location=(1.0, 2.0, -0.5))
+    parent = bpy.context.active_object
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    obj.select_set(True)
+    parent.select_set(True)
+    bpy.context.view_layer.objects.active = parent
+    assert bpy.ops.object.parent_set(type="OBJECT", keep_transform=True) == {"FINISHED"}
+    bpy.context.view_layer.update()
+    assert obj.parent == parent
+    np.testing.assert_allclose(to_world(obj, evaluated(obj)), world, atol=1e-5)
+
+    start = np.array(parent.matrix_world)
+    parent.location += Vector((0.5, -1.0, 2.0))
+    parent.rotation_euler = (0.3, 0.5, 1.0)
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    np.testing.assert_allclose(evaluated(obj), local, atol=1e-5)  # the pose is unchanged
+    rigid = np.array(parent.matrix_world) @ np.linalg.inv(start)
+    np.testing.assert_allclose(to_world(obj, evaluated(obj)), world @ rigid[:3, :3].T + rigid[:3, 3], atol=1e-5)
+    rig.move(-0.3)  # the handles still drive it
+    assert obj.shapedeform.status == ""
+    assert np.abs(evaluated(obj) - local).max() > 0.1
+
+
+# -- non-uniform scale -------------------------------------------------------------------------
+
+@pytest.mark.parametrize("make", ALL)
+@pytest.mark.parametrize("when", ["scaled before binding", "scaled after binding"])
+def test_non_uniform_scale_handles_land_where_they_are(addon, make, when, tmp_path, quiet):
+    """With object scale (2, 1, 1) the handles still land where they are in world space.
+
+    What is rigid: the rig works in the object's local space, as the Armature modifier
+    deforms before the object's transform. Its as-rigid-as-possible pose is rigid in local
+    coordinates; the object's scale then stretches it, so in world space a turned region is
+    stretched by the scale too (a region turned a quarter turn shows its local x length
+    along world y, unscaled). The handles, children of the object, are reached exactly where
+    they are in world space.
+    """
+    obj = make(tmp_path)
+    if when == "scaled before binding":
+        obj.scale = (2.0, 1.0, 1.0)
+        bpy.context.view_layer.update()
+    rig = Rigged(obj)
+    if when == "scaled after binding":
+        obj.scale = (2.0, 1.0, 1.0)
+        bpy.context.view_layer.update()
+    local_rest = evaluated(obj)
+    world_rest = to_world(obj, local_rest)
+    size = size_of(world_rest)
+    handle = rig.second
+    start = np.array(handle.matrix_world.translation)
+    under = np.argmin(np.linalg.norm(world_rest - start, axis=1))
+    assert np.linalg.norm(world_rest[under] - start) < 0.03 * size  # the handle sits on the shape
+
+    step = np.array(obj.matrix_world.to_3x3()) @ rig.local_axis(rig.across)
+    step *= 0.3 / np.linalg.norm(step)  # 0.3 in world space
+    handle.matrix_world.translation = Vector(start + step)
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    world_posed = to_world(obj, evaluated(obj))
+    assert np.abs(world_posed - world_rest).max() > 0.2
+    exact = obj.type == "MESH" and obj.shapedeform.kind == "MESH"
+    assert np.linalg.norm(world_posed[under] - (start + step)) < (1e-4 if exact else 0.03) * size
+    # The other handle's end stays where it is.
+    other = np.array(rig.first.matrix_world.translation)
+    held = np.argmin(np.linalg.norm(world_rest - other, axis=1))
+    assert np.linalg.norm(world_posed[held] - world_rest[held]) < (1e-4 if exact else 0.03) * size
+
+    if exact:
+        # Rigid in local space: turning the handle a quarter turn turns its region rigidly in
+        # local coordinates, so its world lengths along x halve when they come to lie along y.
+        indices = np.asarray(obj.shapedeform.handles[1]["indices"])
+        handle.rotation_euler.z += np.pi / 2
+        bpy.context.view_layer.update()
+        local_posed = evaluated(obj)
+        i, j = indices[:2]
+        assert np.linalg.norm(local_posed[i] - local_posed[j]) == pytest.approx(
+            np.linalg.norm(local_rest[i] - local_rest[j]), rel=1e-3)
+
+
+# -- undo and redo -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("make", ALL)
+def test_undo_and_redo_give_back_the_pose(addon, make, tmp_path, quiet):
+    """After a handle move, Undo shows the earlier pose and Redo the later one; the rig keeps
+    working after both."""
+    obj = make(tmp_path)
+    name = obj.name
+    rig = Rigged(obj)
+    own = data_points(obj)
+    rig.move(0.2)
+    bpy.ops.ed.undo_push(message="first pose")
+    earlier = evaluated(obj)
+    rig.move(0.3)
+    bpy.ops.ed.undo_push(message="second pose")
+    later = evaluated(obj)
+    assert np.abs(later - earlier).max() > 0.1
+
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    obj = bpy.data.objects[name]  # undo reloads every data-block
+    np.testing.assert_allclose(evaluated(obj), earlier, atol=1e-6)
+    assert bpy.ops.ed.redo() == {"FINISHED"}
+    obj = bpy.data.objects[name]
+    np.testing.assert_allclose(evaluated(obj), later, atol=1e-6)
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    obj = bpy.data.objects[name]
+    np.testing.assert_allclose(evaluated(obj), earlier, atol=1e-6)
+    assert data_points(obj).tobytes() == own.tobytes()
+
+    # The rig keeps working: moving the handle as far again gives the later pose again.
+    rig.obj, rig.first, rig.second = obj, obj.shapedeform.handles[0].object, obj.shapedeform.handles[1].object
+    rig.move(0.3)
+    assert obj.shapedeform.status == ""
+    np.testing.assert_allclose(evaluated(obj), later, atol=1e-4 * rig.size)
+    assert data_points(obj).tobytes() == own.tobytes()
+
+
+# -- save and reload ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("make", [pytest.param(make_curve, id="text curve"), pytest.param(make_bezier, id="bezier"),
+                                  pytest.param(make_grease_pencil, id="grease pencil"),
+                                  pytest.param(make_image_plane, id="image plane")])
+def test_save_and_reload_evaluates_the_same_pose(addon, make, tmp_path, quiet):
+    """The reopened file evaluates the same pose, on every frame (a grease-pencil drawing keyed
+    after the bind too: issue 15, defect 7), and the rig keeps working."""
+    obj = make(tmp_path)
+    obj.name = "Shape"
+    rig = Rigged(obj)
+    rest = evaluated(obj)
+    if obj.type == "GREASEPENCIL":  # the animator's later drawing, keyed after the bind
+        obj.data.layers["Lines"].frames.copy(1, 10, instance_drawing=False)
+    rig.move(0.3)
+    rig.move(0.1, handle=rig.first)
+    scene = bpy.context.scene
+    posed = {}
+    for frame in (1, 10):
+        scene.frame_set(frame)
+        posed[frame] = evaluated(obj).copy()
+    scene.frame_set(1)
+    own = data_points(obj)
+    assert np.abs(posed[1] - rest).max() > 0.1
+    if obj.type == "GREASEPENCIL":  # a copy of the bound drawing: deformed the same way
+        np.testing.assert_allclose(posed[10], posed[1], atol=1e-6)
+    control = checks.evaluated_curve_points(obj) if make is make_bezier else None
+    path = str(tmp_path / "shape.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["Shape"]
+    scene = bpy.context.scene
+    assert data_points(obj).tobytes() == own.tobytes()
+    for frame in (10, 1):
+        scene.frame_set(frame)
+        np.testing.assert_array_equal(evaluated(obj), posed[frame], err_msg=f"frame {frame}")
+    if control is not None:  # control points and both handles of the curve
+        np.testing.assert_array_equal(checks.evaluated_curve_points(obj), control)
+    rig.obj, rig.first, rig.second = obj, obj.shapedeform.handles[0].object, obj.shapedeform.handles[1].object
+    rig.move(-0.3)
+    assert obj.shapedeform.status == ""
+    assert np.abs(evaluated(obj) - posed[1]).max() > 0.1
+
+
+def test_a_file_with_an_older_node_group_keeps_its_rigs_when_the_group_is_rebuilt(addon, quiet):
+    """A file made with an older version of the extension's node group gets the new group on
+    the next bind; the rigs already in it keep deforming (rebuilding gives the group's inputs
+    new identifiers, and each modifier keeps its values under the old ones)."""
+    nodes = addon.shapedeform_addon.nodes
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    old = bpy.context.active_object
+    old.shapedeform.layers = "Lines"
+    rest = layer_points(old)
+    rig = Rigged(old)
+    rig.move(0.3)
+    posed = layer_points(old)
+    group = old.modifiers[0].node_group
+    # An older version of the group: version 1 had no input naming the layer attribute (it
+    # read "sd_rigged").
+    if hasattr(nodes, "RIGGED_INPUT"):
+        group.interface.remove(group.interface.items_tree[nodes.RIGGED_INPUT])
+    group[nodes.VERSION_KEY] = nodes.VERSION - 1
+    mesh = grid()
+    Rigged(mesh).move(0.3)  # binding rebuilds the group
+    assert group[nodes.VERSION_KEY] == nodes.VERSION and mesh.modifiers[0].node_group == group
+    bpy.context.view_layer.update()
+    for layer in ("Fills", "Lines"):
+        np.testing.assert_allclose(layer_points(old)[layer], posed[layer], atol=1e-6, err_msg=layer)
+    assert layer_points(old)["Fills"].tobytes() == rest["Fills"].tobytes()
+    rig.move(0.1)
+    assert old.shapedeform.status == ""
+    assert np.abs(layer_points(old)["Lines"] - posed["Lines"]).max() > 0.05
