@@ -34,7 +34,7 @@ def drawing_data(obj):
         rig = rigs.get(obj)
     except RigError:
         return None
-    points = transform_points(rig_format.rig_space(obj), rig.plane.to_3d(rig.posed))
+    points = transform_points(rig_format.rig_space(obj), rig.cage_points(rig.posed))
     return {"edges": points[rig.graph.edges.ravel()].astype(np.float32),
             "regions": points[rig.indices].astype(np.float32)}
 

@@ -12,6 +12,7 @@ import bpy
 import numpy as np
 
 from .. import solver
+from ..solver.rigging import depth
 from ..solver.rigging.handles import frame_2d, region_targets
 from . import rig_format
 from .errors import RigError
@@ -80,8 +81,10 @@ class Rig:
         return solution.positions
 
     def cage_points(self, positions):
-        """The cage's points (n, 3) float32 in rig space for graph ``positions`` (n, 2)."""
-        return self.plane.to_3d(positions).astype(np.float32)
+        """The cage's points (n, 3) float32 in rig space for graph ``positions`` (n, 2), lifted
+        off the plane so that where the pose overlaps itself one layer is in front."""
+        score = depth.moved_score(self.graph.points, positions, self.graph.size)
+        return self.plane.to_3d(positions, depth.heights(score, self.graph.size)).astype(np.float32)
 
 
 def signature(obj):
