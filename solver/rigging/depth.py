@@ -7,19 +7,21 @@ barycentric map as their positions, so renders, modifiers after the rig and expo
 
 The order, per graph point, is a score:
 
-- automatic: how far the point moved from its rest place, as a fraction of the shape's size.
-  What was dragged across the shape (the arm) moved further than what it covers (the body),
-  the score varies smoothly over the shape, and a pose that folds nothing gets heights too
-  small to see;
+- automatic: ``AUTO_WEIGHT`` times how far the point moved from its rest place, as a fraction
+  of the shape's size (less the least any point moved). What was dragged across the shape (the
+  arm) moved further than what it covers (the body), the score varies smoothly over the shape,
+  and a shape moved as a whole stays flat;
 - plus overlap pins: each adds its ``in_front`` amount (positive in front, negative behind)
-  times a weight falling smoothly from 1 at the pin to 0 at ``extent``, measured through the
-  rest shape along the graph's edges, so a pin on a hand does not reach the body across the
-  gap between them. Where extents meet, the amounts add up.
+  times its weight: 1 through the first ``1 - EDGE`` of its ``extent``, falling smoothly to 0 at
+  the extent, measured through the rest shape along the graph's edges, so a pin on a hand does
+  not reach the body across the gap between them. Where extents meet, the amounts add up. With
+  ``AUTO_WEIGHT`` 0.5, a pin's unit amount outweighs the automatic order of any drag shorter
+  than twice the shape's size.
 
 Heights are ``HEIGHT_PER_SCORE`` of the size per unit of score: a layer a tenth of the size
 further moved is 1e-3 of the size in front, what depth buffers need to separate the layers
-cleanly (Cycles, EEVEE and Workbench, orthographic and perspective: design notes), and a
-camera facing the plane cannot see.
+cleanly (Cycles, EEVEE and Workbench, orthographic and perspective: design notes); a pin at 1
+lifts its part 0.02 of the size, which a camera facing the plane does not see.
 """
 
 from __future__ import annotations
@@ -28,9 +30,11 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-__all__ = ["HEIGHT_PER_SCORE", "moved_score", "pin_weights", "heights"]
+__all__ = ["HEIGHT_PER_SCORE", "AUTO_WEIGHT", "EDGE", "moved_score", "pin_weights", "heights"]
 
-HEIGHT_PER_SCORE = 0.01
+HEIGHT_PER_SCORE = 0.02
+AUTO_WEIGHT = 0.5
+EDGE = 0.3
 
 
 def moved_score(rest, posed, size):
@@ -49,11 +53,11 @@ def moved_score(rest, posed, size):
     (n,) float64 ndarray
     """
     moved = np.linalg.norm(np.asarray(posed, dtype=np.float64) - np.asarray(rest, dtype=np.float64), axis=1)
-    return (moved - moved.min()) / size if len(moved) else moved
+    return AUTO_WEIGHT * (moved - moved.min()) / size if len(moved) else moved
 
 
 def pin_weights(points, edges, pins, extents):
-    """Each pin's reach over the graph, 1 at the pin falling smoothly to 0 at its extent.
+    """Each pin's reach over the graph: 1 near the pin, falling smoothly to 0 at its extent.
 
     Distances are shortest paths along the graph's edges at rest, so a pin reaches only the
     part of the shape it is on, not a part across a gap.
@@ -82,8 +86,8 @@ def pin_weights(points, edges, pins, extents):
     n = len(points)
     graph = coo_matrix((lengths, (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
     distance = dijkstra(graph, directed=False, indices=pins, limit=float(extents.max()))
-    t = np.clip(1.0 - distance / np.maximum(extents[:, None], 1e-300), 0.0, 1.0)
-    return t * t * (3.0 - 2.0 * t)  # smoothstep: no crease at the pin's edge or centre
+    t = np.clip((1.0 - distance / np.maximum(extents[:, None], 1e-300)) / EDGE, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)  # smoothstep over the edge: no crease where it starts or ends
 
 
 def heights(score, size, pin_amounts=None, weights=None):

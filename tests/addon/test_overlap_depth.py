@@ -17,7 +17,9 @@ SIZE = 160
 
 
 def figure():
-    """A flat figure: a torso (x in [-0.3, 0.3], y in [-1, 1]) and an arm to its right."""
+    """A flat figure: a torso (x in [-0.3, 0.3], y in [-1, 1]) and an arm to its right.
+
+    Returns the object and, per face, whether it is the arm's."""
     step = 0.1
     xs, ys = np.arange(-0.3, 1.6 + 1e-9, step), np.arange(-1.0, 1.0 + 1e-9, step)
     index = {(i, j): k for k, (j, i) in enumerate(np.ndindex(len(ys), len(xs)))}
@@ -39,6 +41,7 @@ def figure():
         mesh.materials.append(renders.flat_material("Torso" if colour == TORSO else "Arm", colour))
     mesh.polygons.foreach_set("material_index", np.array(arm, dtype=np.int32))
     obj = bpy.data.objects.new("Figure", mesh)
+    obj["forearm_from_x"] = 0.8  # the arm's faces beyond this x, in the tests' pin checks
     bpy.context.scene.collection.objects.link(obj)
     bpy.context.view_layer.objects.active = obj
     # Drop vertices on no face (the grid's corners beside the arm).
@@ -65,9 +68,10 @@ def swing_arm_across(obj):
     return tip
 
 
-def part_shares(obj, arm, camera, pixels):
+def part_shares(obj, arm, camera, pixels, torso=None):
     """(arm share, torso share) of the pixels where the evaluated arm and torso overlap."""
-    overlap = renders.overlap_pixels(camera, SIZE, renders.covered(obj, arm), renders.covered(obj, ~arm),
+    torso = ~arm if torso is None else torso
+    overlap = renders.overlap_pixels(camera, SIZE, renders.covered(obj, arm), renders.covered(obj, torso),
                                      margin=1.5 * camera.data.ortho_scale / SIZE)
     assert overlap.sum() > 50, "the pose does not overlap the arm with the torso"
     return shares(pixels[overlap])
@@ -104,3 +108,52 @@ def test_a_perspective_camera_sees_the_same_layer_in_front(addon, tmp_path):
     # At this distance the perspective view is within a pixel or two of the orthographic one
     # over the overlap (the margin above), where every pixel must show the arm.
     assert shares(pixels[expected])[0] >= 0.97
+
+
+def forearm(obj, arm):
+    """Per face: the arm's faces beyond the elbow. Where the arm folds over at the shoulder,
+    the arm and the torso are the same distance from any pin; the forearm is what pins judge."""
+    centres = np.array([p.center.x for p in obj.data.polygons])
+    return arm & (centres > obj["forearm_from_x"])
+
+
+def render_overlap(obj, arm, tmp_path, name):
+    """(forearm share, torso share) where the forearm lies over the torso, rendered."""
+    camera = renders.camera_over((0.4, 0.0), 2.6)
+    pixels = renders.render(tmp_path / f"{name}.png", size=SIZE)
+    return part_shares(obj, forearm(obj, arm), camera, pixels, ~arm)
+
+
+def test_overlap_pins_put_the_pinned_part_in_front_or_behind_and_key_between(addon, tmp_path):
+    obj, arm = figure()
+    swing_arm_across(obj)
+    scene = bpy.context.scene
+    scene.frame_set(10)
+    before = checks.evaluated_mesh_points(obj)[:, :2].copy()
+    assert render_overlap(obj, arm, tmp_path, "no_pin")[0] >= 0.97  # by default the arm
+    bpy.context.view_layer.objects.active = obj
+    # The pin goes where the hand is now, and binds to the rest point under it.
+    hand = checks.evaluated_mesh_points(obj)[np.argmin(np.linalg.norm(checks.mesh_points(obj)[:, :2] - [1.4, 0.65], axis=1))]
+    assert bpy.ops.shapedeform.add_handle(location=tuple(hand), kind="OVERLAP") == {"FINISHED"}
+    pin = obj.shapedeform.handles[-1].object
+    assert pin.shapedeform.pin_kind == "OVERLAP" and pin.shapedeform.in_front == 1.0
+    assert pin.parent == obj.shapedeform.cage and pin.parent_type == "VERTEX"
+    np.testing.assert_allclose(np.array(pin.matrix_world.translation)[:2], hand[:2], atol=0.08)  # on the hand
+    pin.shapedeform.extent = 0.3
+    # A pin pulls nothing: the shape stays where it was.
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj)[:, :2], before, atol=1e-6)
+    arm_share, torso_share = render_overlap(obj, arm, tmp_path, "hand_pinned_in_front")
+    assert arm_share >= 0.97, f"hand pinned +1: arm {arm_share:.3f}, torso {torso_share:.3f}"
+    pin.shapedeform.in_front = -1.0
+    arm_share, torso_share = render_overlap(obj, arm, tmp_path, "hand_pinned_behind")
+    assert torso_share >= 0.97, f"hand pinned -1: arm {arm_share:.3f}, torso {torso_share:.3f}"
+
+    # Keyed: behind at frame 9, in front at frame 10.
+    pin.shapedeform.in_front = -1.0
+    pin.keyframe_insert('shapedeform.in_front', frame=9)
+    pin.shapedeform.in_front = 1.0
+    pin.keyframe_insert('shapedeform.in_front', frame=10)
+    scene.frame_set(9)
+    assert render_overlap(obj, arm, tmp_path, "keyed9")[1] >= 0.97  # behind the body
+    scene.frame_set(10)
+    assert render_overlap(obj, arm, tmp_path, "keyed10")[0] >= 0.97  # in front of it

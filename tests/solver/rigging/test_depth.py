@@ -18,7 +18,7 @@ def test_what_moved_further_is_higher_and_heights_scale_with_size():
     for size in (1.0, 10.0):
         h = depth.heights(depth.moved_score(rest, posed, size), size)
         assert h[0] == 0.0 and h[0] < h[1] < h[2]
-        np.testing.assert_allclose(h, depth.HEIGHT_PER_SCORE * np.array([0.0, 0.5, 1.5]))
+        np.testing.assert_allclose(h, depth.HEIGHT_PER_SCORE * depth.AUTO_WEIGHT * np.array([0.0, 0.5, 1.5]))
 
 
 def two_strips():
@@ -32,12 +32,13 @@ def two_strips():
 
 def test_a_pin_reaches_through_the_shape_not_across_a_gap():
     points, edges = two_strips()
-    weights = depth.pin_weights(points, edges, pins=[5], extents=[0.3])
+    weights = depth.pin_weights(points, edges, pins=[5], extents=[0.25])
     assert weights.shape == (1, 22)
     assert weights[0, 5] == 1.0
     assert np.all(weights[0, 11:] == 0.0)  # the other strip is 0.05 away across the gap
     np.testing.assert_allclose(weights[0, [4, 6]], weights[0, 4])  # symmetric along the strip
-    assert weights[0, 4] > weights[0, 3] > 0.0 and weights[0, 2] == weights[0, 1] == 0.0  # 0.3 away: the edge
+    assert weights[0, 4] == 1.0 and 1.0 > weights[0, 3] > 0.0  # full reach, then a soft edge
+    assert weights[0, 2] == weights[0, 1] == 0.0  # 0.3 away: beyond the extent
 
 
 def test_pins_add_up_where_their_extents_meet_and_sign_sets_front_or_back():
