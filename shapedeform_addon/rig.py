@@ -86,11 +86,10 @@ class Rig:
         self.settled = solution.converged
         return solution.positions
 
-    def read_pins(self, depsgraph=None):
-        """Take the overlap pins' current (animated) amounts."""
-        def evaluated(o):
-            return o.evaluated_get(depsgraph) if depsgraph is not None else o
-        self.in_front = np.array([evaluated(p).shapedeform.in_front for p in self.overlap_pins], dtype=np.float64)
+    def read_pins(self):
+        """Take the overlap pins' current amounts (the active depsgraph writes animated values
+        back to the original Empties, and an edit in the sidebar is there before any depsgraph)."""
+        self.in_front = np.array([p.shapedeform.in_front for p in self.overlap_pins], dtype=np.float64)
 
     def cage_points(self, positions):
         """The cage's points (n, 3) float32 in rig space for graph ``positions`` (n, 2), lifted
@@ -149,7 +148,7 @@ def pose(obj, depsgraph=None, final=None):
     frames = rig.frames(owner, depsgraph)
     settings = owner.shapedeform
     final = final_quality() if final is None else final
-    rig.read_pins(depsgraph)
+    rig.read_pins()
     try:
         positions = rig.solve(frames, settings.render_iterations if final else settings.iterations)
         points = rig.cage_points(positions)

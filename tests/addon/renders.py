@@ -26,7 +26,8 @@ def flat_material(name, colour):
     """A material of one flat colour in Workbench (its viewport colour) and Cycles (emission)."""
     material = bpy.data.materials.new(name)
     material.diffuse_color = colour
-    material.use_nodes = True
+    if material.node_tree is None:  # Blender 5 materials always have nodes
+        material.use_nodes = True
     nodes, links = material.node_tree.nodes, material.node_tree.links
     nodes.clear()
     emission = nodes.new("ShaderNodeEmission")
