@@ -157,3 +157,43 @@ def test_overlap_pins_put_the_pinned_part_in_front_or_behind_and_key_between(add
     assert render_overlap(obj, arm, tmp_path, "keyed9")[1] >= 0.97  # behind the body
     scene.frame_set(10)
     assert render_overlap(obj, arm, tmp_path, "keyed10")[0] >= 0.97  # in front of it
+
+
+def stroke_heights(obj, layer, normal):
+    """Mean height along ``normal`` of each stroke of a layer's evaluated drawing, in its order."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    geometry = obj.evaluated_get(depsgraph).evaluated_geometry()
+    drawing = geometry.grease_pencil.layers[layer].current_frame().drawing
+    points = checks.drawing_points(drawing) @ np.asarray(normal, float)
+    offsets = np.empty(len(drawing.curve_offsets), np.int32)
+    drawing.curve_offsets.foreach_get("value", offsets)
+    return np.array([points[a:b].mean() for a, b in zip(offsets[:-1], offsets[1:])])
+
+
+def test_grease_pencil_strokes_draw_back_to_front(addon):
+    """The monkey's ear folded over its face: its strokes draw after the face's, in each layer."""
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    rest = checks.drawing_points(obj.data.layers["Lines"].current_frame().drawing)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    left_ear = rest[np.argmin(rest[:, 0])]
+    checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 2])]))  # chin
+    checks.add_handle(obj, checks.world(obj, rest[np.argmax(rest[:, 0])]))  # other ear
+    ear = checks.add_handle(obj, checks.world(obj, left_ear))
+    ear.location.x += 0.55  # over the eye
+    modifier = addon.shapedeform_addon.rig_format.modifiers_of(obj)[0]
+    key = addon.shapedeform_addon.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
+    assert addon.shapedeform_addon.compat.modifier_input(modifier, key) is False  # opt-in
+    addon.shapedeform_addon.compat.set_modifier_input(modifier, key, True)
+    obj.update_tag()
+    bpy.context.view_layer.update()
+    front = (0.0, -1.0, 0.0)  # the monkey is drawn in XZ, seen from -Y
+    for layer in ("Fills", "Lines"):
+        heights = stroke_heights(obj, layer, front)
+        assert np.all(np.diff(heights) >= -1e-9), layer  # back to front
+        assert heights[-1] > heights[0] + 1e-3  # the ear was lifted, and drawn last
+    # The drawing itself keeps its order; turned off, the modifier keeps it too.
+    addon.shapedeform_addon.compat.set_modifier_input(modifier, key, False)
+    obj.update_tag()
+    heights = stroke_heights(obj, "Lines", front)
+    assert np.any(np.diff(heights) < -1e-6)
