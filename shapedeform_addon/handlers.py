@@ -90,7 +90,8 @@ def on_depsgraph_update(scene, depsgraph):
         if not update.is_updated_transform:
             continue
         owner = handles.rig_of(obj)
-        if owner is not None and obj.type == "EMPTY":
+        # Pins follow the cage (vertex parents): their moves are the pose's, not the animator's.
+        if owner is not None and obj.type == "EMPTY" and obj.shapedeform.pin_kind == "POSITION":
             moved[owner.name] = owner
     _pose(list(moved.values()), depsgraph)
 

@@ -30,13 +30,16 @@ def collection(obj):
     return collection
 
 
-def add(obj, location, on_rest=False):
+def add(obj, location, on_rest=False, kind="POSITION"):
     """Add a handle at a world ``location`` (projected onto the shape's plane).
 
     The handle owns the graph points near the place on the rest shape that is now under
     ``location`` (or, with ``on_rest``, that ``location`` is at on the unposed shape); their
     offsets are taken from their current (posed) positions, so adding a handle does not move
     the shape.
+
+    A pin (``kind`` 'OVERLAP' or 'STARCH') pulls nothing: it is bound to the graph point under
+    ``location`` and vertex-parented to that point of the cage, so it follows the shape.
 
     Returns
     -------
@@ -62,6 +65,8 @@ def add(obj, location, on_rest=False):
     if on_rest:
         # Placed where that rest point is now, so it holds the shape as it is.
         point = rest_position(rig.posed, graph.points, graph.triangles, point[None])[0]
+    if kind != "POSITION":
+        return _add_pin(obj, rig, int(np.argmin(np.linalg.norm(graph.points - rest_centre, axis=1))), kind)
     taken = np.zeros(graph.n, dtype=bool)
     taken[rig.indices] = True
     try:
@@ -92,6 +97,25 @@ def add(obj, location, on_rest=False):
     item["indices"] = region.astype(np.int32)
     item["offsets"] = offsets.ravel()
     settings.active_handle = len(settings.handles) - 1
+    rigs.forget(obj)
+    return empty
+
+
+def _add_pin(obj, rig, point, kind):
+    empty = bpy.data.objects.new(f"{obj.name} {kind.title()} Pin", None)
+    empty.empty_display_type = "SPHERE" if kind == "OVERLAP" else "CUBE"
+    collection(obj).objects.link(empty)
+    empty.shapedeform.rig = obj
+    empty.shapedeform.pin_kind = kind
+    empty.empty_display_size = empty.shapedeform.extent * rig.graph.size
+    empty.parent = obj.shapedeform.cage
+    empty.parent_type = "VERTEX"
+    empty.parent_vertices = (point, 0, 0)
+    empty.matrix_parent_inverse.identity()
+    item = obj.shapedeform.handles.add()
+    item.object = empty
+    item[rig_format.PIN_POINT] = point
+    obj.shapedeform.active_handle = len(obj.shapedeform.handles) - 1
     rigs.forget(obj)
     return empty
 

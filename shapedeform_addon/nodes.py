@@ -30,7 +30,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 3
+VERSION = 4
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -39,7 +39,8 @@ POSED = "sd_posed"  # only inside the group, on the cage
 # their data each have their own; everything is deformed when it is missing or the name empty.
 # A modifier made by version 1 of the group, which had no such input, reads ``RIGGED``.
 RIGGED = "sd_rigged"
-CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT, REFINE_INPUT = "Cage", "Owner", "Rigged Layers", "Refine"
+CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT = "Cage", "Owner", "Rigged Layers"
+REFINE_INPUT, ORDER_INPUT = "Refine", "Stroke Order"
 
 
 def node_group():
@@ -53,7 +54,7 @@ def node_group():
     users = [m for o in bpy.data.objects for m in o.modifiers if m.type == "NODES" and m.node_group == group]
     old = input_identifiers(group)
     kept = [(m, {name: compat.modifier_input(m, key) for name, key in old.items()
-                 if name in (CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT, REFINE_INPUT)}) for m in users]  # not the geometry
+                 if name in (CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT)}) for m in users]  # not the geometry
     _build(group)
     group[VERSION_KEY] = VERSION
     new = input_identifiers(group)
@@ -119,6 +120,11 @@ def _build(group):
     refine.description = ("Subdivide a mesh's faces this many times before deforming it, so long thin "
                           "faces (text, n-gon fills) bend instead of folding; 0 keeps the mesh as it is")
     refine.default_value, refine.min_value, refine.max_value = 0, 0, 6
+    order = group.interface.new_socket(ORDER_INPUT, in_out="INPUT", socket_type="NodeSocketBool")
+    order.description = ("Grease pencil: draw strokes back to front by depth, so the part in front of an "
+                         "overlap draws after the parts it covers (rebuilds the layers: their blend modes, "
+                         "lights and masks are not kept, and layers get a drawing on every frame)")
+    order.default_value = False
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     b = _Builder(group)
     given = b.node("NodeGroupInput")
@@ -183,10 +189,35 @@ def _build(group):
     moved = b.node("GeometryNodeSetPosition",
                    {"Geometry": right.outputs[0], "Selection": selection, "Position": mapped(position)})
 
+    # Grease pencil draws strokes in their order within a layer: sort them back to front by
+    # their mean height along the plane's normal (the cage's rest normal, the same for every
+    # triangle). Sorting works on curves only, so the drawings go through curves and back.
+    plane_normal = b.node("GeometryNodeSampleIndex", {"Geometry": rest_cage, "Value": normal, "Index": 0},
+                          data_type="FLOAT_VECTOR", domain="FACE").outputs[0]
+    height = b.node("ShaderNodeVectorMath", [position, plane_normal], operation="DOT_PRODUCT").outputs["Value"]
+    stroke_height = b.node("GeometryNodeFieldOnDomain", {"Value": height}, domain="CURVE", data_type="FLOAT").outputs[0]
+    parts = b.node("GeometryNodeSeparateComponents", [moved.outputs[0]])
+    as_curves = b.node("GeometryNodeGreasePencilToCurves", {"Grease Pencil": parts.outputs["Grease Pencil"],
+                                                             "Layers as Instances": True}).outputs[0]
+    in_order = b.node("GeometryNodeSortElements", {"Geometry": as_curves, "Sort Weight": stroke_height},
+                      domain="CURVE").outputs[0]
+    drawings = b.node("GeometryNodeCurvesToGreasePencil", {"Curves": in_order, "Instances as Layers": True}).outputs[0]
+    joined = b.node("GeometryNodeJoinGeometry")
+    for name in ("Mesh", "Curve", "Point Cloud", "Volume", "Instances"):
+        group.links.new(parts.outputs[name], joined.inputs[0])
+    group.links.new(drawings, joined.inputs[0])
+    has_drawings = b.node("GeometryNodeAttributeDomainSize", {"Geometry": parts.outputs["Grease Pencil"]},
+                          component="GREASEPENCIL").outputs["Layer Count"]
+    reorder = b.node("FunctionNodeBooleanMath", [given.outputs[ORDER_INPUT], b.node(
+        "FunctionNodeCompare", {"A": has_drawings, "B": 0}, data_type="INT", operation="GREATER_THAN").outputs[0]],
+        operation="AND").outputs[0]
+    ordered = b.node("GeometryNodeSwitch", {"Switch": reorder, "False": moved.outputs[0], "True": joined.outputs[0]},
+                     input_type="GEOMETRY").outputs[0]
+
     # No cage (deleted by hand, or no faces): the geometry passes unchanged.
     faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.outputs["Geometry"]}, component="MESH")
     has_cage = b.node("FunctionNodeCompare", {"A": faces.outputs["Face Count"], "B": 0},
                       data_type="INT", operation="GREATER_THAN").outputs[0]
-    switch = b.node("GeometryNodeSwitch", {"Switch": has_cage, "False": given.outputs[0], "True": moved.outputs[0]},
+    switch = b.node("GeometryNodeSwitch", {"Switch": has_cage, "False": given.outputs[0], "True": ordered},
                     input_type="GEOMETRY")
     b.node("NodeGroupOutput", {0: switch.outputs[0]})

@@ -6,10 +6,11 @@ Every operator refuses bad input with a message in the status bar and changes no
 
 import bpy
 import numpy as np
-from bpy.props import FloatVectorProperty
+from bpy.props import EnumProperty, FloatVectorProperty
 
 from . import binding, handles, rig, rig_format, sources
 from .errors import RigError
+from .properties import PIN_KINDS
 
 
 class SHAPEDEFORM_OT_bind(bpy.types.Operator):
@@ -69,6 +70,8 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
 
     location: FloatVectorProperty(name="Location", subtype="TRANSLATION", size=3,
                                   description="World location of the handle (projected onto the shape's plane)")
+    kind: EnumProperty(name="Kind", items=PIN_KINDS, default="POSITION",
+                       description="A handle that moves the shape, or a pin that sets its depth or stiffness")
 
     def execute(self, context):
         active = context.active_object
@@ -98,7 +101,8 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
         try:
             for location in locations:
                 # Selected points are given at rest (the data is the rest shape).
-                added.append(handles.add(obj, location, on_rest=was_edit and not self.properties.is_property_set("location")))
+                added.append(handles.add(obj, location, kind=self.kind,
+                                         on_rest=was_edit and not self.properties.is_property_set("location")))
         except RigError as err:
             handles.remove(obj, set(added))  # all or nothing
             if was_edit:

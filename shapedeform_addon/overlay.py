@@ -1,5 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Viewport overlay: the graph's edges and each handle's region, drawn with the gpu module.
+"""Viewport overlay: the graph's edges, each handle's region and each overlap pin's reach
+(light where it brings the shape in front, dark where it sends it behind, as After Effects tints
+its overlap pins), drawn with the gpu module.
 
 :func:`drawing_data` computes what to draw and is testable headless; :func:`draw` only hands it
 to the GPU, which has no context without a window.
@@ -15,6 +17,7 @@ from .errors import RigError
 
 EDGE_COLOR = (0.2, 0.8, 1.0, 0.6)
 REGION_COLOR = (1.0, 0.5, 0.1, 1.0)
+REACH_OPACITY = 0.8
 
 _handle = None
 
@@ -26,7 +29,10 @@ def drawing_data(obj):
     -------
     dict or None
         ``edges``: (2k, 3) float32 line endpoints of the graph at its current pose;
-        ``regions``: (m, 3) float32 graph points owned by handles.
+        ``regions``: (m, 3) float32 graph points owned by handles;
+        ``reach``: (r, 3) float32 graph points overlap pins reach, and ``reach_colors``,
+        (r, 4) float32: white for in front, black for behind, as opaque as the pin's weight
+        there times its amount (up to 1).
     """
     if obj is None or not obj.shapedeform.is_bound or not obj.shapedeform.show_overlay:
         return None
@@ -34,9 +40,16 @@ def drawing_data(obj):
         rig = rigs.get(obj)
     except RigError:
         return None
-    points = transform_points(rig_format.rig_space(obj), rig.plane.to_3d(rig.posed))
+    points = transform_points(rig_format.rig_space(obj), rig.cage_points(rig.posed))
+    strength = rig.in_front[:, None] * rig.overlap_reach  # (pins, n)
+    reached = np.flatnonzero(np.abs(strength).sum(axis=0) > 0) if len(strength) else np.empty(0, np.int64)
+    total = strength[:, reached].sum(axis=0) if len(strength) else np.empty(0)
+    colors = np.zeros((len(reached), 4), np.float32)
+    colors[:, :3] = (total > 0)[:, None]
+    colors[:, 3] = np.minimum(np.abs(total), 1.0) * REACH_OPACITY
     return {"edges": points[rig.graph.edges.ravel()].astype(np.float32),
-            "regions": points[rig.indices].astype(np.float32)}
+            "regions": points[rig.indices].astype(np.float32),
+            "reach": points[reached].astype(np.float32), "reach_colors": colors}
 
 
 def draw():
@@ -55,6 +68,9 @@ def draw():
     gpu.state.point_size_set(6.0)
     shader.uniform_float("color", REGION_COLOR)
     batch_for_shader(shader, "POINTS", {"pos": data["regions"]}).draw(shader)
+    if len(data["reach"]):
+        shader = gpu.shader.from_builtin("FLAT_COLOR")
+        batch_for_shader(shader, "POINTS", {"pos": data["reach"], "color": data["reach_colors"]}).draw(shader)
     gpu.state.blend_set("NONE")
 
 

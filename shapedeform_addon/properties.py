@@ -19,6 +19,29 @@ def _settings_changed(self, context):
         rig.pose_safely(owner, context.evaluated_depsgraph_get())
 
 
+def _pin_changed(self, context):
+    """A pin's amount changed: pose its rig again (the reach is cached with the rig)."""
+    from . import rig  # late: rig imports this module's users
+    owner = self.rig
+    if isinstance(self.id_data, bpy.types.Object) and owner is not None and owner.shapedeform.is_bound:
+        rig.pose_safely(owner, context.evaluated_depsgraph_get())
+
+
+def _pin_reach_changed(self, context):
+    from . import rig
+    owner = self.rig
+    if owner is not None and owner.shapedeform.is_bound:
+        rig.forget(owner)
+        rig.pose_safely(owner, context.evaluated_depsgraph_get())
+
+
+PIN_KINDS = [
+    ("POSITION", "Position", "A handle: the shape follows where it is moved and turned"),
+    ("OVERLAP", "Overlap", "Brings the shape near it in front of (or, negative, behind) other parts where they overlap"),
+    ("STARCH", "Starch", "Stiffens the shape near it so that it bends less"),
+]
+
+
 class SHAPEDEFORM_PG_handle(bpy.types.PropertyGroup):
     """One handle of a rig: the Empty the animator moves."""
 
@@ -37,6 +60,16 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
                                    description="An image plane's quad, given back on unbind")
     rig: PointerProperty(type=bpy.types.Object, name="Rig",
                          description="On a handle or a cage: the bound object whose rig it belongs to")
+    pin_kind: EnumProperty(name="Kind", description="What this handle of a rig does", items=PIN_KINDS,
+                           default="POSITION")
+    in_front: FloatProperty(
+        name="In Front", description="On an overlap pin: how far in front of other parts the shape near it is "
+                                      "where they overlap (negative: behind); pins add up where they meet",
+        default=1.0, soft_min=-3.0, soft_max=3.0, update=_pin_changed)
+    extent: FloatProperty(
+        name="Extent", description="On an overlap or starch pin: how far its influence reaches through the "
+                                   "shape, as a fraction of the shape's size",
+        default=0.25, min=0.001, max=2.0, subtype="FACTOR", update=_pin_reach_changed)
     cage: PointerProperty(type=bpy.types.Object, name="Cage",
                           description="The mesh of the rig's graph that the solver poses; the object's "
                                       "Shape Deform modifier maps every point through it")

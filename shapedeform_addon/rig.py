@@ -12,6 +12,7 @@ import bpy
 import numpy as np
 
 from .. import solver
+from ..solver.rigging import depth
 from ..solver.rigging.handles import frame_2d, region_targets
 from . import rig_format
 from .errors import RigError
@@ -52,6 +53,12 @@ class Rig:
                 if len(self.indices) else None
         except ValueError as err:
             raise RigError(f"'{obj.name}': {err}") from None
+        overlap = rig_format.pin_items(obj, "OVERLAP")
+        self.overlap_pins = [empty for empty, _ in overlap]
+        self.overlap_reach = depth.pin_weights(
+            self.graph.points, self.graph.edges, [point for _, point in overlap],
+            [empty.shapedeform.extent * self.graph.size for empty, _ in overlap])
+        self.in_front = np.zeros(len(overlap))
         self.signature = signature(obj)
         # Graph positions of the last pose written (rest until posed), and whether that pose is
         # what a render gives: converged, or solved with the Render budget.
@@ -79,15 +86,24 @@ class Rig:
         self.settled = solution.converged
         return solution.positions
 
+    def read_pins(self):
+        """Take the overlap pins' current amounts (the active depsgraph writes animated values
+        back to the original Empties, and an edit in the sidebar is there before any depsgraph)."""
+        self.in_front = np.array([p.shapedeform.in_front for p in self.overlap_pins], dtype=np.float64)
+
     def cage_points(self, positions):
-        """The cage's points (n, 3) float32 in rig space for graph ``positions`` (n, 2)."""
-        return self.plane.to_3d(positions).astype(np.float32)
+        """The cage's points (n, 3) float32 in rig space for graph ``positions`` (n, 2), lifted
+        off the plane so that where the pose overlaps itself one layer is in front."""
+        score = depth.moved_score(self.graph.points, positions, self.graph.size)
+        lift = depth.heights(score, self.graph.size, self.in_front, self.overlap_reach)
+        return self.plane.to_3d(positions, lift).astype(np.float32)
 
 
 def signature(obj):
     """What the deformer depends on besides stored data: handles and settings."""
     s = obj.shapedeform
-    return (tuple(item.object.name if rig_format.present(item.object) else None for item in s.handles),
+    return (tuple((item.object.name, item.object.shapedeform.pin_kind, item.object.shapedeform.extent)
+                  if rig_format.present(item.object) else None for item in s.handles),
             s.weight_laplacian, s.weight_mvc, s.weight_edge, s.preserve_area, s.prevent_flips)
 
 
@@ -132,6 +148,7 @@ def pose(obj, depsgraph=None, final=None):
     frames = rig.frames(owner, depsgraph)
     settings = owner.shapedeform
     final = final_quality() if final is None else final
+    rig.read_pins()
     try:
         positions = rig.solve(frames, settings.render_iterations if final else settings.iterations)
         points = rig.cage_points(positions)

@@ -7,7 +7,9 @@ cut-out mesh the rig makes, and given back on unbind). What it keeps:
 On the bound object (the rig's *owner*), ``obj.shapedeform``:
     ``is_bound``, ``kind``, the settings (:mod:`.properties`), ``cage``, ``handles`` (each item:
     the Empty, and as ID properties ``indices``, the graph points it owns, and ``offsets``,
-    those points in the handle's frame when it was added), and as ID properties the plane
+    those points in the handle's frame when it was added; a pin's item has ``point``, the graph
+    point it is bound to, and its Empty, vertex-parented to that point of the cage, says its
+    ``pin_kind`` and amounts), and as ID properties the plane
     (``plane``, 12 numbers) and the graph (``graph_points``, ``graph_edges``, ``graph_loops``
     with ``graph_loop_sizes``, ``graph_triangles``), stored rather than rebuilt so that a file
     opens with exactly the graph it was rigged with; for grease pencil ``rigged_attribute``,
@@ -39,6 +41,7 @@ BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that 
 # On the owner's settings: the name of the attribute marking the grease-pencil layers its rig
 # deforms ("" for all of them); the modifier is given the same name.
 RIGGED_KEY = "rigged_attribute"
+PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
 
 
 # -- the graph and the plane ------------------------------------------------------------------
@@ -85,13 +88,19 @@ def present(handle):
 
 
 def handle_items(obj):
-    """The owner's live handles: [(Empty, indices (k,) int64, offsets (k, 2) float64)]."""
+    """The owner's live position handles: [(Empty, indices (k,) int64, offsets (k, 2) float64)]."""
     found = []
     for item in obj.shapedeform.handles:
-        if present(item.object) and "indices" in item:
+        if present(item.object) and "indices" in item and item.object.shapedeform.pin_kind == "POSITION":
             found.append((item.object, np.asarray(item["indices"], dtype=np.int64),
                           np.asarray(item["offsets"], dtype=np.float64).reshape(-1, 2)))
     return found
+
+
+def pin_items(obj, kind):
+    """The owner's live pins of ``kind`` ('OVERLAP', 'STARCH'): [(Empty, graph point it is bound to)]."""
+    return [(item.object, int(item[PIN_POINT])) for item in obj.shapedeform.handles
+            if present(item.object) and PIN_POINT in item and item.object.shapedeform.pin_kind == kind]
 
 
 # -- the cage and the modifier ----------------------------------------------------------------

@@ -6,12 +6,18 @@ import bpy
 from .rig_format import active_rig, is_baked, is_follower
 
 
+KIND_ICONS = {"POSITION": "EMPTY_DATA", "OVERLAP": "SELECT_SUBTRACT", "STARCH": "MOD_SOLIDIFY"}
+
+
 class SHAPEDEFORM_UL_handles(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0):
         if item.object is None:
             layout.label(text="(deleted)", icon="ERROR")
-        else:
-            layout.prop(item.object, "name", text="", emboss=False, icon="EMPTY_DATA")
+            return
+        kind = item.object.shapedeform.pin_kind
+        row = layout.row()
+        row.prop(item.object, "name", text="", emboss=False, icon=KIND_ICONS[kind])
+        row.label(text=kind.title())
 
 
 class SHAPEDEFORM_PT_panel(bpy.types.Panel):
@@ -48,7 +54,14 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
         row.template_list("SHAPEDEFORM_UL_handles", "", settings, "handles", settings, "active_handle", rows=3)
         buttons = row.column(align=True)
         buttons.operator("shapedeform.add_handle", text="", icon="ADD")
+        buttons.operator("shapedeform.add_handle", text="", icon=KIND_ICONS["OVERLAP"]).kind = "OVERLAP"
         buttons.operator("shapedeform.remove_handle", text="", icon="REMOVE")
+        active = settings.handles[settings.active_handle].object if len(settings.handles) > settings.active_handle else None
+        if active is not None and active.shapedeform.pin_kind == "OVERLAP":
+            col = layout.column(align=True)
+            col.label(text=f"Overlap Pin '{active.name}'")
+            col.prop(active.shapedeform, "in_front")
+            col.prop(active.shapedeform, "extent")
         layout.prop(settings, "region_size")
         col = layout.column(align=True)
         col.label(text="Energy Weights")

@@ -42,6 +42,7 @@ class RecordingLayout:
 
     def operator(self, idname, **_):
         self.record.append(idname)
+        return SimpleNamespace()  # takes operator properties
 
     def prop(self, _data, name, **_):
         self.record.append(name)
@@ -80,3 +81,30 @@ def test_panel_offers_bind_then_handles_weights_and_bake_then_clear_bake(addon):
     assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 2) == [obj]
     items = drawn(bpy.context)
     assert "shapedeform.clear_bake" in items and "shapedeform.bake" not in items
+
+
+def test_pins_show_their_kind_and_values_and_the_overlay_tints_their_reach(addon):
+    obj = grid()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.8, 0.0, 0.0]), kind="OVERLAP") == {"FINISHED"}
+    pin = obj.shapedeform.handles[-1].object
+    bpy.context.view_layer.objects.active = obj
+    items = drawn(bpy.context)
+    assert "in_front" in items and "extent" in items  # the active pin's values
+    obj.shapedeform.active_handle = 0
+    assert "in_front" not in drawn(bpy.context)  # a position handle has none
+
+    overlay = addon.shapedeform_addon.overlay
+    obj.shapedeform.show_overlay = True
+    data = overlay.drawing_data(obj)
+    assert len(data["reach"]) > 0 and np.all(data["reach_colors"][:, :3] == 1.0)  # in front: light
+    assert data["reach_colors"][:, 3].max() == np.float32(overlay.REACH_OPACITY)
+    near = np.linalg.norm(data["reach"][:, :2] - np.array(checks.world(obj, [0.8, 0.0, 0.0]))[:2], axis=1)
+    assert near.max() < 1.05 * pin.shapedeform.extent * addon.shapedeform_addon.rig.get(obj).graph.size
+    pin.shapedeform.in_front = -0.5
+    data = overlay.drawing_data(obj)
+    assert np.all(data["reach_colors"][:, :3] == 0.0)  # behind: dark
+    assert data["reach_colors"][:, 3].max() == np.float32(0.5 * overlay.REACH_OPACITY)

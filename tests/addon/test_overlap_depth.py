@@ -1,0 +1,199 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Where a pose folds the shape over itself, one layer renders in front, cleanly (issue 14).
+
+A figure (a torso and an arm, each its own material colour) has its arm dragged across its
+torso; the scene is rendered headless and the pixels where the evaluated arm and torso both lie
+are read back: one part's colour fills them, the same on consecutive frames of the motion."""
+
+import bpy
+import numpy as np
+import pytest
+
+import renders
+import rig_checks as checks
+
+TORSO, ARM = (0.1, 0.2, 0.9, 1.0), (0.9, 0.15, 0.1, 1.0)
+SIZE = 160
+
+
+def figure():
+    """A flat figure: a torso (x in [-0.3, 0.3], y in [-1, 1]) and an arm to its right.
+
+    Returns the object and, per face, whether it is the arm's."""
+    step = 0.1
+    xs, ys = np.arange(-0.3, 1.6 + 1e-9, step), np.arange(-1.0, 1.0 + 1e-9, step)
+    index = {(i, j): k for k, (j, i) in enumerate(np.ndindex(len(ys), len(xs)))}
+    verts = [(x, y, 0.0) for y in ys for x in xs]
+    faces, arm = [], []
+    for (i, j), k in index.items():
+        if i + 1 >= len(xs) or j + 1 >= len(ys):
+            continue
+        cx, cy = xs[i] + step / 2, ys[j] + step / 2
+        in_torso, in_arm = cx < 0.3, 0.5 < cy < 0.8
+        if in_torso or in_arm:
+            quad = [k, index[i + 1, j], index[i + 1, j + 1], index[i, j + 1]]
+            faces += [quad[:3], [quad[0], quad[2], quad[3]]]
+            arm += [not in_torso] * 2
+    mesh = bpy.data.meshes.new("Figure")
+    mesh.from_pydata(verts, [], faces)
+    mesh.validate()
+    for colour in (TORSO, ARM):
+        mesh.materials.append(renders.flat_material("Torso" if colour == TORSO else "Arm", colour))
+    mesh.polygons.foreach_set("material_index", np.array(arm, dtype=np.int32))
+    obj = bpy.data.objects.new("Figure", mesh)
+    obj["forearm_from_x"] = 0.8  # the arm's faces beyond this x, in the tests' pin checks
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    # Drop vertices on no face (the grid's corners beside the arm).
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="SELECT")
+    bpy.ops.mesh.delete_loose()
+    bpy.ops.object.mode_set(mode="OBJECT")
+    return obj, np.array(arm)
+
+
+def swing_arm_across(obj):
+    """Bind, hold the torso, and key the arm's tip from its rest place (frame 1) across the
+    torso (frame 10)."""
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, (0.0, -0.8, 0.0))
+    checks.add_handle(obj, (0.0, 0.3, 0.0))
+    tip = checks.add_handle(obj, (1.5, 0.65, 0.0))
+    tip.keyframe_insert("location", frame=1)
+    tip.keyframe_insert("rotation_euler", frame=1)
+    tip.location = (-0.75, 0.45, 0.0)
+    tip.rotation_euler.z = 3.0
+    tip.keyframe_insert("location", frame=10)
+    tip.keyframe_insert("rotation_euler", frame=10)
+    return tip
+
+
+def part_shares(obj, arm, camera, pixels, torso=None):
+    """(arm share, torso share) of the pixels where the evaluated arm and torso overlap."""
+    torso = ~arm if torso is None else torso
+    overlap = renders.overlap_pixels(camera, SIZE, renders.covered(obj, arm), renders.covered(obj, torso),
+                                     margin=1.5 * camera.data.ortho_scale / SIZE)
+    assert overlap.sum() > 50, "the pose does not overlap the arm with the torso"
+    return shares(pixels[overlap])
+
+
+def shares(pixels):
+    """(arm share, torso share) of ``pixels`` (k, 4): red-dominated is the arm, blue the torso."""
+    red, blue = pixels[:, 0], pixels[:, 2]
+    return float(np.mean(red > blue + 0.3)), float(np.mean(blue > red + 0.3))
+
+
+@pytest.mark.parametrize("engine", ["BLENDER_WORKBENCH", "CYCLES"])
+def test_with_no_pin_the_arm_dragged_across_renders_in_front_on_consecutive_frames(addon, tmp_path, engine):
+    obj, arm = figure()
+    swing_arm_across(obj)
+    camera = renders.camera_over((0.4, 0.0), 2.6)
+    scene = bpy.context.scene
+    for frame in (8, 9, 10):
+        scene.frame_set(frame)
+        pixels = renders.render(tmp_path / f"frame{frame}.png", engine=engine, size=SIZE)
+        arm_share, torso_share = part_shares(obj, arm, camera, pixels)
+        assert arm_share >= 0.97, f"frame {frame}: arm {arm_share:.3f}, torso {torso_share:.3f}"
+
+
+def test_a_perspective_camera_sees_the_same_layer_in_front(addon, tmp_path):
+    obj, arm = figure()
+    swing_arm_across(obj)
+    bpy.context.scene.frame_set(10)
+    ortho = renders.camera_over((0.4, 0.0), 2.6)
+    expected = renders.overlap_pixels(ortho, SIZE, renders.covered(obj, arm), renders.covered(obj, ~arm),
+                                      margin=3 * 2.6 / SIZE)
+    renders.camera_over((0.4, 0.0), 2.6, perspective=True)
+    pixels = renders.render(tmp_path / "perspective.png", size=SIZE)
+    # At this distance the perspective view is within a pixel or two of the orthographic one
+    # over the overlap (the margin above), where every pixel must show the arm.
+    assert shares(pixels[expected])[0] >= 0.97
+
+
+def forearm(obj, arm):
+    """Per face: the arm's faces beyond the elbow. Where the arm folds over at the shoulder,
+    the arm and the torso are the same distance from any pin; the forearm is what pins judge."""
+    centres = np.array([p.center.x for p in obj.data.polygons])
+    return arm & (centres > obj["forearm_from_x"])
+
+
+def render_overlap(obj, arm, tmp_path, name):
+    """(forearm share, torso share) where the forearm lies over the torso, rendered."""
+    camera = renders.camera_over((0.4, 0.0), 2.6)
+    pixels = renders.render(tmp_path / f"{name}.png", size=SIZE)
+    return part_shares(obj, forearm(obj, arm), camera, pixels, ~arm)
+
+
+def test_overlap_pins_put_the_pinned_part_in_front_or_behind_and_key_between(addon, tmp_path):
+    obj, arm = figure()
+    swing_arm_across(obj)
+    scene = bpy.context.scene
+    scene.frame_set(10)
+    before = checks.evaluated_mesh_points(obj)[:, :2].copy()
+    assert render_overlap(obj, arm, tmp_path, "no_pin")[0] >= 0.97  # by default the arm
+    bpy.context.view_layer.objects.active = obj
+    # The pin goes where the hand is now, and binds to the rest point under it.
+    hand = checks.evaluated_mesh_points(obj)[np.argmin(np.linalg.norm(checks.mesh_points(obj)[:, :2] - [1.4, 0.65], axis=1))]
+    assert bpy.ops.shapedeform.add_handle(location=tuple(hand), kind="OVERLAP") == {"FINISHED"}
+    pin = obj.shapedeform.handles[-1].object
+    assert pin.shapedeform.pin_kind == "OVERLAP" and pin.shapedeform.in_front == 1.0
+    assert pin.parent == obj.shapedeform.cage and pin.parent_type == "VERTEX"
+    np.testing.assert_allclose(np.array(pin.matrix_world.translation)[:2], hand[:2], atol=0.08)  # on the hand
+    pin.shapedeform.extent = 0.3
+    # A pin pulls nothing: the shape stays where it was.
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj)[:, :2], before, atol=1e-6)
+    arm_share, torso_share = render_overlap(obj, arm, tmp_path, "hand_pinned_in_front")
+    assert arm_share >= 0.97, f"hand pinned +1: arm {arm_share:.3f}, torso {torso_share:.3f}"
+    pin.shapedeform.in_front = -1.0
+    arm_share, torso_share = render_overlap(obj, arm, tmp_path, "hand_pinned_behind")
+    assert torso_share >= 0.97, f"hand pinned -1: arm {arm_share:.3f}, torso {torso_share:.3f}"
+
+    # Keyed: behind at frame 9, in front at frame 10.
+    pin.shapedeform.in_front = -1.0
+    pin.keyframe_insert('shapedeform.in_front', frame=9)
+    pin.shapedeform.in_front = 1.0
+    pin.keyframe_insert('shapedeform.in_front', frame=10)
+    scene.frame_set(9)
+    assert render_overlap(obj, arm, tmp_path, "keyed9")[1] >= 0.97  # behind the body
+    scene.frame_set(10)
+    assert render_overlap(obj, arm, tmp_path, "keyed10")[0] >= 0.97  # in front of it
+
+
+def stroke_heights(obj, layer, normal):
+    """Mean height along ``normal`` of each stroke of a layer's evaluated drawing, in its order."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    geometry = obj.evaluated_get(depsgraph).evaluated_geometry()
+    drawing = geometry.grease_pencil.layers[layer].current_frame().drawing
+    points = checks.drawing_points(drawing) @ np.asarray(normal, float)
+    offsets = np.empty(len(drawing.curve_offsets), np.int32)
+    drawing.curve_offsets.foreach_get("value", offsets)
+    return np.array([points[a:b].mean() for a, b in zip(offsets[:-1], offsets[1:])])
+
+
+def test_grease_pencil_strokes_draw_back_to_front(addon):
+    """The monkey's ear folded over its face: its strokes draw after the face's, in each layer."""
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    rest = checks.drawing_points(obj.data.layers["Lines"].current_frame().drawing)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    left_ear = rest[np.argmin(rest[:, 0])]
+    checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 2])]))  # chin
+    checks.add_handle(obj, checks.world(obj, rest[np.argmax(rest[:, 0])]))  # other ear
+    ear = checks.add_handle(obj, checks.world(obj, left_ear))
+    ear.location.x += 0.55  # over the eye
+    modifier = addon.shapedeform_addon.rig_format.modifiers_of(obj)[0]
+    key = addon.shapedeform_addon.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
+    assert addon.shapedeform_addon.compat.modifier_input(modifier, key) is False  # opt-in
+    addon.shapedeform_addon.compat.set_modifier_input(modifier, key, True)
+    obj.update_tag()
+    bpy.context.view_layer.update()
+    front = (0.0, -1.0, 0.0)  # the monkey is drawn in XZ, seen from -Y
+    for layer in ("Fills", "Lines"):
+        heights = stroke_heights(obj, layer, front)
+        assert np.all(np.diff(heights) >= -1e-9), layer  # back to front
+        assert heights[-1] > heights[0] + 1e-3  # the ear was lifted, and drawn last
+    # The drawing itself keeps its order; turned off, the modifier keeps it too.
+    addon.shapedeform_addon.compat.set_modifier_input(modifier, key, False)
+    obj.update_tag()
+    heights = stroke_heights(obj, "Lines", front)
+    assert np.any(np.diff(heights) < -1e-6)

@@ -1,0 +1,50 @@
+"""Depth for overlapping layers: the automatic score and overlap pins' reach (solver.rigging.depth)."""
+
+import numpy as np
+
+from solver.rigging import depth
+
+
+def test_a_shape_that_only_moved_as_a_whole_stays_in_its_plane():
+    rng = np.random.default_rng(3)
+    rest = rng.random((40, 2))
+    score = depth.moved_score(rest, rest + [0.7, -0.2], size=1.4)
+    np.testing.assert_allclose(depth.heights(score, 1.4), 0.0, atol=1e-15)
+
+
+def test_what_moved_further_is_higher_and_heights_scale_with_size():
+    rest = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    posed = rest + [[0.0, 0.0], [0.0, 0.5], [0.0, 1.5]]
+    for size in (1.0, 10.0):
+        h = depth.heights(depth.moved_score(rest, posed, size), size)
+        assert h[0] == 0.0 and h[0] < h[1] < h[2]
+        np.testing.assert_allclose(h, depth.HEIGHT_PER_SCORE * depth.AUTO_WEIGHT * np.array([0.0, 0.5, 1.5]))
+
+
+def two_strips():
+    """Two parallel strips of points a small gap apart, each a chain of edges."""
+    xs = np.linspace(0.0, 1.0, 11)
+    points = np.concatenate([np.column_stack([xs, np.zeros(11)]), np.column_stack([xs, np.full(11, 0.05)])])
+    edges = np.concatenate([np.column_stack([np.arange(10), np.arange(1, 11)]),
+                            np.column_stack([np.arange(11, 21), np.arange(12, 22)])])
+    return points, edges
+
+
+def test_a_pin_reaches_through_the_shape_not_across_a_gap():
+    points, edges = two_strips()
+    weights = depth.pin_weights(points, edges, pins=[5], extents=[0.25])
+    assert weights.shape == (1, 22)
+    assert weights[0, 5] == 1.0
+    assert np.all(weights[0, 11:] == 0.0)  # the other strip is 0.05 away across the gap
+    np.testing.assert_allclose(weights[0, [4, 6]], weights[0, 4])  # symmetric along the strip
+    assert weights[0, 4] == 1.0 and 1.0 > weights[0, 3] > 0.0  # full reach, then a soft edge
+    assert weights[0, 2] == weights[0, 1] == 0.0  # 0.3 away: beyond the extent
+
+
+def test_pins_add_up_where_their_extents_meet_and_sign_sets_front_or_back():
+    points, edges = two_strips()
+    weights = depth.pin_weights(points, edges, pins=[3, 6], extents=[0.5, 0.5])
+    score = np.zeros(22)
+    both = depth.heights(score, 1.0, [1.0, 1.0], weights)
+    assert both[4] > depth.heights(score, 1.0, [1.0, 0.0], weights)[4] > 0.0
+    assert np.all(depth.heights(score, 1.0, [-1.0, 0.0], weights)[:10] <= 0.0)
