@@ -9,8 +9,11 @@ What it does, as an animator would in Blender, but from a script:
 2. rigs Blender's grease-pencil monkey and an image with alpha imported as a plane (a
    character drawn here), adds handles, keyframes them, and bakes the animation into ordinary
    keyframes;
-3. saves ``demo.blend`` and writes before/after pictures of what Blender evaluated
-   (``monkey.png``, ``character.png`` and ``demo.png`` side by side) into ``--out``.
+3. poses the character twice more with its hand across its body, with and without an overlap
+   pin on the hand;
+4. saves ``demo.blend`` and renders with Workbench what Blender evaluated: the rigs at the first
+   and last frame (``monkey.png``, ``character.png``, and ``demo.png`` side by side) and the
+   overlap without and with the pin (``overlap.png``), into ``--out``.
 """
 
 import argparse
@@ -126,6 +129,8 @@ def rig_monkey():
 
     bpy.ops.object.grease_pencil_add(type="MONKEY", location=(0, 0, 0))
     monkey = bpy.context.active_object
+    for layer in monkey.data.layers:
+        layer.use_lights = False  # the demo's scene has no lights: show the drawing's own colours
     bind(monkey)
     points = gp_points(monkey)
     low, high = points.min(axis=0), points.max(axis=0)
@@ -173,116 +178,128 @@ def rig_character(out):
     return plane
 
 
-def gp_points(obj, evaluated=True):
+def gp_points(obj):
     """World positions of all points of a grease-pencil object's current drawings, (p, 3)."""
-    import bpy
     import numpy as np
 
-    source = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()) if evaluated else obj
-    chunks = []
-    for layer in source.data.layers:
+    world = np.array(obj.matrix_world)
+    parts = []
+    for layer in obj.data.layers:
         frame = layer.current_frame()
-        if frame is None:
+        if frame is None or frame.drawing is None:
             continue
         attribute = frame.drawing.attributes["position"]
-        values = np.empty(len(attribute.data) * 3, dtype=np.float32)
-        attribute.data.foreach_get("vector", values)
-        chunks.append(values.reshape(-1, 3))
-    local = np.concatenate(chunks).astype(np.float64)
-    matrix = np.array(obj.matrix_world)
-    return local @ matrix[:3, :3].T + matrix[:3, 3]
+        flat = np.empty(len(attribute.data) * 3, np.float32)
+        attribute.data.foreach_get("vector", flat)
+        parts.append(flat.reshape(-1, 3))
+    points = np.concatenate(parts).astype(np.float64)
+    return points @ world[:3, :3].T + world[:3, 3]
 
 
-def gp_strokes(obj):
-    """Evaluated strokes: (layer name, (k, 3) world-space polyline, cyclic) for each stroke."""
+def mesh_world_points(obj):
+    """World positions of a mesh object's own vertices, (p, 3)."""
+    import numpy as np
+
+    mesh = obj.data
+    flat = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.attributes["position"].data.foreach_get("vector", flat)
+    world = np.array(obj.matrix_world)
+    return flat.reshape(-1, 3).astype(np.float64) @ world[:3, :3].T + world[:3, 3]
+
+
+def rig_overlap(out):
+    """The character again, its hand dragged across its body; a copy with an overlap pin at -1
+    on the hand sends the arm behind the body."""
     import bpy
     import numpy as np
 
-    source = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    matrix = np.array(obj.matrix_world)
-    strokes = []
-    for layer in source.data.layers:
-        frame = layer.current_frame()
-        if frame is None:
-            continue
-        drawing = frame.drawing
-        attribute = drawing.attributes["position"]
-        values = np.empty(len(attribute.data) * 3, dtype=np.float32)
-        attribute.data.foreach_get("vector", values)
-        points = values.reshape(-1, 3).astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
-        offsets = np.concatenate([[0], np.cumsum([len(stroke.points) for stroke in drawing.strokes])])
-        cyclic = [stroke.cyclic for stroke in drawing.strokes]
-        strokes += [(layer.name, points[a:b], c) for a, b, c in zip(offsets[:-1], offsets[1:], cyclic)]
-    return strokes
+    posed = []
+    for x, in_front in ((6.0, None), (9.0, -1.0)):
+        bpy.ops.image.import_as_mesh_planes(files=[{"name": "character.source.png"}], directory=out)
+        plane = bpy.context.active_object
+        plane.location.x = x
+        bpy.context.view_layer.update()
+        bind(plane)
+        world = mesh_world_points(plane)
+        low, high = world.min(axis=0), world.max(axis=0)
+        size = high[1] - low[1]
+        for foot in (world[np.argmin(world[:, 1] + 0.3 * world[:, 0])], world[np.argmin(world[:, 1] - 0.3 * world[:, 0])]):
+            add_handle(plane, foot)
+        add_handle(plane, world[np.argmax(world[:, 1])])  # the head
+        chest = 0.5 * (low + high) + np.array([0.0, 0.12, 0.0]) * size
+        add_handle(plane, chest)
+        hand = world[np.argmax(world[:, 0])]
+        if in_front is not None:
+            # Pinned at rest, where the hand is alone (once across the body, the place is both's).
+            with bpy.context.temp_override(object=plane, active_object=plane, selected_objects=[plane]):
+                bpy.ops.shapedeform.add_handle(location=tuple(hand - np.array([0.05, 0.0, 0.0]) * size),
+                                               kind="OVERLAP")
+            pin = plane.shapedeform.handles[-1].object
+            pin.shapedeform.extent = 0.15
+            pin.shapedeform.in_front = in_front
+        arm = add_handle(plane, hand)
+        arm.location = tuple(np.asarray(arm.location) + np.array([-0.55, 0.12, 0.0]) * size)
+        arm.rotation_euler.z = 2.6
+        bpy.context.view_layer.update()
+        if plane.shapedeform.status:
+            raise RuntimeError(plane.shapedeform.status)
+        posed.append(plane)
+    return posed
 
 
-def mesh_world_points(obj, evaluated=False):
+def _camera(name, target, width, front_view=False):
+    """An orthographic camera framing ``width`` around ``target``: from above, or from the front
+    (looking along +Y) for grease pencil drawn in XZ."""
+    import math
+
     import bpy
-    import numpy as np
 
-    mesh = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data if evaluated else obj.data
-    values = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
-    mesh.vertices.foreach_get("co", values)
-    matrix = np.array(obj.matrix_world)
-    return values.reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
-
-
-def mesh_picture(obj):
-    """Evaluated triangles in world XY and a colour per triangle sampled from its image."""
-    import bpy
-    import numpy as np
-
-    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    mesh = evaluated.to_mesh()
-    mesh.calc_loop_triangles()
-    points = np.empty(len(mesh.vertices) * 3)
-    mesh.vertices.foreach_get("co", points)
-    matrix = np.array(obj.matrix_world)
-    points = points.reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
-    triangles = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int64)
-    mesh.loop_triangles.foreach_get("vertices", triangles)
-    loops = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int64)
-    mesh.loop_triangles.foreach_get("loops", loops)
-    uv = np.empty(len(mesh.loops) * 2)
-    mesh.uv_layers.active.data.foreach_get("uv", uv)
-    uv = uv.reshape(-1, 2)[loops].reshape(-1, 3, 2).mean(axis=1)
-    image = next(node.image for node in obj.active_material.node_tree.nodes if node.type == "TEX_IMAGE")
-    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
-    pixels = pixels.reshape(image.size[1], image.size[0], 4)
-    rows = np.clip((uv[:, 1] * image.size[1]).astype(int), 0, image.size[1] - 1)
-    cols = np.clip((uv[:, 0] * image.size[0]).astype(int), 0, image.size[0] - 1)
-    colours = pixels[rows, cols, :3]
-    evaluated.to_mesh_clear()
-    return points, triangles.reshape(-1, 3), colours
-
-
-def draw(ax, obj, kind, title):
-    import numpy as np
-
-    if kind == "gp":
-        for layer, stroke, cyclic in gp_strokes(obj):
-            if cyclic:
-                stroke = np.concatenate([stroke, stroke[:1]])
-            if layer == "Fills":
-                ax.fill(stroke[:, 0], stroke[:, 2], color="#f2c79a", lw=0)
-            else:
-                ax.plot(stroke[:, 0], stroke[:, 2], color="black", lw=1.2)
+    data = bpy.data.cameras.new(name)
+    data.type, data.ortho_scale = "ORTHO", width
+    camera = bpy.data.objects.new(name, data)
+    bpy.context.scene.collection.objects.link(camera)
+    if front_view:
+        camera.location = (target[0], target[1] - 10.0, target[2])
+        camera.rotation_euler = (math.pi / 2, 0.0, 0.0)
     else:
-        points, triangles, colours = mesh_picture(obj)
-        from matplotlib.collections import PolyCollection
-
-        ax.add_collection(PolyCollection(points[triangles][:, :, :2], facecolors=colours, edgecolors="none"))
-        ax.autoscale_view()
-    for item in obj.shapedeform.handles:
-        location = np.array(item.object.matrix_world.translation)
-        ax.plot(location[0], location[2] if kind == "gp" else location[1], "o", color="tab:red", ms=6)
-    ax.set_aspect("equal")
-    ax.set_title(title)
-    ax.axis("off")
+        camera.location = (target[0], target[1], target[2] + 10.0)
+    return camera
 
 
-def pictures(monkey, character, out):
+def render(camera, objects, path, size=360):
+    """Render only ``objects`` through ``camera`` with Workbench, flat and textured, to ``path``."""
+    import bpy
+
+    scene = bpy.context.scene
+    shown = {o.name: o.hide_render for o in scene.objects}
+    for o in scene.objects:
+        o.hide_render = o.type != "CAMERA" and o not in objects
+    scene.camera = camera
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.film_transparent = False
+    scene.view_settings.view_transform = "Standard"
+    shading = scene.display.shading
+    shading.light, shading.color_type, shading.background_type = "FLAT", "TEXTURE", "VIEWPORT"
+    shading.background_color = (1.0, 1.0, 1.0)
+    scene.render.filepath = path
+    scene.render.image_settings.file_format = "PNG"
+    bpy.ops.render.render(write_still=True)
+    for name, hidden in shown.items():
+        scene.objects[name].hide_render = hidden
+
+
+def _frame(points, front_view=False, margin=1.25):
+    import numpy as np
+
+    low, high = points.min(axis=0), points.max(axis=0)
+    extent = (high - low)[[0, 2]] if front_view else (high - low)[:2]
+    return 0.5 * (low + high), margin * float(extent.max())
+
+
+def pictures(monkey, character, overlap, out):
+    """Blender's own renders (Workbench) of the rigs at the first and last frame, and of the
+    overlap with and without a pin, laid out side by side."""
     import bpy
     import matplotlib
 
@@ -290,19 +307,46 @@ def pictures(monkey, character, out):
     import matplotlib.pyplot as plt
 
     scene = bpy.context.scene
+    scene.frame_set(FRAMES[0])
+    monkey_view = _camera("Monkey View", *_frame(gp_points(monkey), front_view=True), front_view=True)
+    character_view = _camera("Character View", *_frame(mesh_world_points(character)))
+    renders = {}
+    for obj, camera, name in ((monkey, monkey_view, "monkey"), (character, character_view, "character")):
+        for frame in FRAMES:
+            scene.frame_set(frame)
+            path = os.path.join(out, f"{name}_{frame}.png")
+            render(camera, [obj], path)
+            renders[name, frame] = path
+    scene.frame_set(FRAMES[0])
+    for obj, label in zip(overlap, ("no pin", "pin")):
+        centre, width = _frame(mesh_world_points(obj))
+        path = os.path.join(out, f"overlap_{label.replace(' ', '_')}.png")
+        render(_camera(f"{obj.name} View", centre, width), [obj], path)
+        renders["overlap", label] = path
+
+    def panel(ax, path, title):
+        ax.imshow(plt.imread(path))
+        ax.set_title(title)
+        ax.axis("off")
+
     figure, axes = plt.subplots(1, 4, figsize=(16, 4.5))
-    for column, (obj, kind, name) in enumerate(((monkey, "gp", "monkey"), (character, "mesh", "character"))):
+    for column, name in enumerate(("monkey", "character")):
         single, pair = plt.subplots(1, 2, figsize=(9, 4.5))
         for i, frame in enumerate(FRAMES):
-            scene.frame_set(frame)
-            label = f"{name}, frame {frame} ({'rest' if i == 0 else 'posed'})"
-            draw(pair[i], obj, kind, label)
-            draw(axes[2 * column + i], obj, kind, label)
+            title = f"{name}, frame {frame} ({'rest' if i == 0 else 'posed'})"
+            panel(pair[i], renders[name, frame], title)
+            panel(axes[2 * column + i], renders[name, frame], title)
         single.tight_layout()
         single.savefig(os.path.join(out, f"{name}.png"), dpi=90)
         plt.close(single)
     figure.tight_layout()
     figure.savefig(os.path.join(out, "demo.png"), dpi=80)
+    plt.close(figure)
+    figure, pair = plt.subplots(1, 2, figsize=(9, 4.5))
+    panel(pair[0], renders["overlap", "no pin"], "hand across the body: in front (automatic)")
+    panel(pair[1], renders["overlap", "pin"], "an overlap pin at -1 on the hand: behind")
+    figure.tight_layout()
+    figure.savefig(os.path.join(out, "overlap.png"), dpi=90)
     plt.close(figure)
 
 
@@ -329,11 +373,13 @@ def main(argv=None):
     print(f"rigged the traced image plane: {len(character.shapedeform.handles)} handles")
     bake([monkey, character])
     print(f"baked frames {FRAMES[0]}-{FRAMES[1]}")
+    overlap = rig_overlap(out)
+    print("rigged the character twice more, its hand across its body, with and without an overlap pin")
     blend = os.path.join(out, "demo.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend)
     print(f"saved {blend}")
-    pictures(monkey, character, out)
-    print(f"wrote {os.path.join(out, 'demo.png')} (and monkey.png, character.png) "
+    pictures(monkey, character, overlap, out)
+    print(f"wrote {os.path.join(out, 'demo.png')} (and monkey.png, character.png, overlap.png) "
           f"in {time.perf_counter() - start:.1f} s")
     return 0
 

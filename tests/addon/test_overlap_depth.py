@@ -5,9 +5,12 @@ A figure (a torso and an arm, each its own material colour) has its arm dragged 
 torso; the scene is rendered headless and the pixels where the evaluated arm and torso both lie
 are read back: one part's colour fills them, the same on consecutive frames of the motion."""
 
+import addon_utils
 import bpy
 import numpy as np
 import pytest
+
+from conftest import ADDON_MODULE
 
 import renders
 import rig_checks as checks
@@ -197,3 +200,26 @@ def test_grease_pencil_strokes_draw_back_to_front(addon):
     obj.update_tag()
     heights = stroke_heights(obj, "Lines", front)
     assert np.any(np.diff(heights) < -1e-6)
+
+
+def test_a_baked_overlap_renders_the_same_with_the_extension_disabled(addon, tmp_path):
+    obj, arm = figure()
+    swing_arm_across(obj)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.add_handle(location=(0.0, -0.5, 0.0), kind="OVERLAP") == {"FINISHED"}
+    pin = obj.shapedeform.handles[-1].object  # on the torso, reaching the lower half of it
+    pin.shapedeform.extent = 0.3
+    pin.keyframe_insert('shapedeform.in_front', frame=1)
+    assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 10) == [obj]
+    camera = renders.camera_over((0.4, 0.0), 2.6)
+    bpy.context.scene.frame_set(10)
+    live = renders.render(tmp_path / "baked_live.png", size=SIZE)
+    addon_utils.disable(ADDON_MODULE, default_set=True)
+    try:
+        bpy.context.scene.frame_set(9)
+        bpy.context.scene.frame_set(10)
+        alone = renders.render(tmp_path / "baked_alone.png", size=SIZE)
+        assert part_shares(obj, arm, camera, alone)[0] >= 0.97
+        assert np.abs(alone - live).max() < 1e-6  # the same picture
+    finally:
+        addon_utils.enable(ADDON_MODULE, default_set=True)
