@@ -17,6 +17,14 @@ the deformed object's space with ``inverse(owner) @ cage``, both world matrices,
 owner is the bound object. A duplicate's modifier keeps both pointers, so it follows the same
 rig in its own space.
 
+Finding each point's triangle is most of the cost (a nearest-triangle search per point takes
+about 85% of an evaluation of a 50,000-vertex mesh). Points whose projection lies inside the
+cage, nearly all of them, are found instead by Sample UV Surface, whose reverse-UV grid is a
+cheaper lookup: the cage gets a UV map, its rest points in the plane scaled to the unit square,
+and each point samples the cage's displacement (posed minus rest) at its own UV, which is the
+same map (barycentric in the plane, heights kept). Only the points it misses (off the outline)
+and Bezier handles take the nearest-triangle search.
+
 A missing cage (deleted by hand) leaves the geometry as it is.
 
 The group is built from Python (no asset file to keep in step) and rebuilt when an older
@@ -26,7 +34,7 @@ extension's group is found (``VERSION``).
 import bpy
 
 GROUP_NAME = "Shape Deform"
-VERSION = 1
+VERSION = 2
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -90,13 +98,26 @@ class _Builder:
         return self.node("FunctionNodeCombineMatrix", inputs).outputs[0]
 
 
+_SOCKETS = (("Geometry", "INPUT", "NodeSocketGeometry"), (CAGE_INPUT, "INPUT", "NodeSocketObject"),
+            (OWNER_INPUT, "INPUT", "NodeSocketObject"), ("Geometry", "OUTPUT", "NodeSocketGeometry"))
+
+
+def _interface(group):
+    """Give the group its inputs and outputs, keeping them when they are already right: the
+    modifiers of a file made with an older group keep their values by socket identifier, which
+    a new socket would not have."""
+    found = [(item.name, item.in_out, item.socket_type) for item in group.interface.items_tree
+             if item.item_type == "SOCKET"]
+    if sorted(found) == sorted(_SOCKETS):  # Blender lists outputs first
+        return
+    group.interface.clear()
+    for name, in_out, socket_type in _SOCKETS:
+        group.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+
+
 def _build(group):
     group.nodes.clear()
-    group.interface.clear()
-    group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
-    group.interface.new_socket(CAGE_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
-    group.interface.new_socket(OWNER_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
-    group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    _interface(group)
     b = _Builder(group)
     given = b.node("NodeGroupInput")
     geometry, cage_object, owner_object = given.outputs[0], given.outputs[1], given.outputs[2]
@@ -156,8 +177,43 @@ def _build(group):
     right = b.node("GeometryNodeSetCurveHandlePositions",
                    {"Curve": left.outputs[0], "Selection": selection, "Position": mapped(handles.outputs["Right"])},
                    mode="RIGHT")
+
+    # Points inside the cage: its displacement sampled at their UV (see the module docstring).
+    # The rig's plane, turned onto XY, gives the UVs; the rest cage's first face has its normal.
+    normal = b.node("GeometryNodeSampleIndex",
+                    {"Geometry": rest_cage, "Value": b.node("GeometryNodeInputNormal").outputs[0], "Index": 0},
+                    data_type="FLOAT_VECTOR", domain="FACE").outputs[0]
+    onto_plane = b.node("FunctionNodeInvertRotation",
+                        [b.node("FunctionNodeAlignRotationToVector", {"Vector": normal}, axis="Z").outputs[0]]).outputs[0]
+
+    def in_plane(point):
+        return b.node("FunctionNodeRotateVector", [point, onto_plane]).outputs[0]
+
+    flat_cage = b.node("GeometryNodeSetPosition", {"Geometry": rest_cage, "Position": in_plane(position)}).outputs[0]
+    box = b.node("GeometryNodeBoundBox", [flat_cage])
+    span = b.math("SUBTRACT", box.outputs["Max"], box.outputs["Min"])
+
+    def uv(point):
+        return b.math("DIVIDE", b.math("SUBTRACT", in_plane(point), box.outputs["Min"]), span)
+
+    displacement = b.node("GeometryNodeSampleUVSurface",
+                          {"Mesh": rest_cage, "Value": b.math("SUBTRACT", posed, position),
+                           "UV Map": uv(position), "Sample UV": uv(position)},
+                          data_type="FLOAT_VECTOR")
+    # Captured once for every point, so the search below runs only where the lookup missed.
+    captured = b.node("GeometryNodeCaptureAttribute", {"Geometry": right.outputs[0]}, domain="POINT")
+    captured.capture_items.new("BOOLEAN", "Inside")
+    captured.capture_items.new("VECTOR", "Moved")
+    # By name: Blender 5.2 added a Selection input before the captured items.
+    group.links.new(displacement.outputs["Is Valid"], captured.inputs["Inside"])
+    group.links.new(b.math("ADD", position, displacement.outputs["Value"]), captured.inputs["Moved"])
+    inside, moved_inside = captured.outputs["Inside"], captured.outputs["Moved"]
+    both = b.node("FunctionNodeBooleanMath", [selection, inside], operation="AND").outputs[0]
+    outside = b.node("FunctionNodeBooleanMath", [selection, inside], operation="NIMPLY").outputs[0]
+    looked_up = b.node("GeometryNodeSetPosition",
+                       {"Geometry": captured.outputs[0], "Selection": both, "Position": moved_inside})
     moved = b.node("GeometryNodeSetPosition",
-                   {"Geometry": right.outputs[0], "Selection": selection, "Position": mapped(position)})
+                   {"Geometry": looked_up.outputs[0], "Selection": outside, "Position": mapped(position)})
 
     # No cage (deleted by hand, or no faces): the geometry passes unchanged.
     faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.outputs["Geometry"]}, component="MESH")
