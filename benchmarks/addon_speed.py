@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Time from moving a handle to what Blender evaluates, and per baked frame, in Blender.
 
-Runs under the dev venv's PyPI ``bpy``. Each design of the extension is built from its checkout
+Runs under the dev venv's PyPI ``bpy`` 5.0 or later (the drawings are made through
+``bpy.data.grease_pencils``, which 4.5 still gives the legacy type). Each design of the extension is built from its checkout
 and installed like a user, in a Python process of its own with its own temporary
 ``BLENDER_USER_RESOURCES`` (every version has the id ``shapedeform``, so two cannot share one
 process). On four objects -- Blender's grease-pencil monkey, a 1,200-point and a 5,000-point
@@ -402,6 +403,8 @@ def driver(args):
             # Share this checkout's wheel cache: the build would otherwise download every wheel.
             os.symlink(os.path.realpath(os.path.join(ROOT, "wheels")), wheels)
     runs = {label: [] for label, _ in designs}
+    # Other processes share the machine: their load is reported beside the timings.
+    load_before = os.getloadavg()[0]
     for r in range(args.rounds):
         # Alternate which design goes first, so a drift in the machine's load hits both alike.
         for label, root in (designs if r % 2 == 0 else designs[::-1]):
@@ -418,6 +421,7 @@ def driver(args):
               f"Machine: {machine}",
               f"Date: {datetime.date.today().isoformat()}",
               f"new: {ROOT} at {_commit(ROOT)}" + (f"; old: {designs[1][1]} at {_commit(designs[1][1])}" if old else ""),
+              f"Load average (1 min) at start and end: {load_before:.1f}, {os.getloadavg()[0]:.1f}",
               f"{args.repeats} repeats per measure, median; {args.rounds} round(s), median of the rounds' medians; "
               f"bake of {args.bake_frames} frames."]
     parts = ["\n\n".join(header), "", table(new, old), "", verdict(new)]
