@@ -17,6 +17,14 @@ the deformed object's space with ``inverse(owner) @ cage``, both world matrices,
 owner is the bound object. A duplicate's modifier keeps both pointers, so it follows the same
 rig in its own space.
 
+Finding each point's triangle is most of the cost (a nearest-triangle search per point takes
+about 85% of an evaluation of a 50,000-vertex mesh). Points whose projection lies inside the
+cage, nearly all of them, are found instead by Sample UV Surface, whose reverse-UV grid is a
+cheaper lookup: the cage gets a UV map, its rest points in the plane scaled to the unit square,
+and each point samples the cage's displacement (posed minus rest) at its own UV, which is the
+same map (barycentric in the plane, heights kept). Only the points it misses (off the outline)
+and Bezier handles take the nearest-triangle search.
+
 A missing cage (deleted by hand) leaves the geometry as it is. The ``Refine`` input (0 by
 default) subdivides a mesh's faces before mapping: a long thin face spanning a bent stretch
 otherwise keeps straight edges and can flip although the map under it does not fold.
@@ -30,7 +38,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 4
+VERSION = 5
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -186,14 +194,48 @@ def _build(group):
     right = b.node("GeometryNodeSetCurveHandlePositions",
                    {"Curve": left.outputs[0], "Selection": selection, "Position": mapped(handles.outputs["Right"])},
                    mode="RIGHT")
+
+    # Points inside the cage: its displacement sampled at their UV (see the module docstring).
+    # The rig's plane, turned onto XY, gives the UVs; the rest cage's first face has its normal
+    # (every face has the same: the rest cage is flat).
+    plane_normal = b.node("GeometryNodeSampleIndex",
+                          {"Geometry": rest_cage, "Value": b.node("GeometryNodeInputNormal").outputs[0], "Index": 0},
+                          data_type="FLOAT_VECTOR", domain="FACE").outputs[0]
+    onto_plane = b.node("FunctionNodeInvertRotation",
+                        [b.node("FunctionNodeAlignRotationToVector", {"Vector": plane_normal}, axis="Z").outputs[0]]).outputs[0]
+
+    def in_plane(point):
+        return b.node("FunctionNodeRotateVector", [point, onto_plane]).outputs[0]
+
+    flat_cage = b.node("GeometryNodeSetPosition", {"Geometry": rest_cage, "Position": in_plane(position)}).outputs[0]
+    box = b.node("GeometryNodeBoundBox", [flat_cage])
+    span = b.math("SUBTRACT", box.outputs["Max"], box.outputs["Min"])
+
+    def uv(point):
+        return b.math("DIVIDE", b.math("SUBTRACT", in_plane(point), box.outputs["Min"]), span)
+
+    displacement = b.node("GeometryNodeSampleUVSurface",
+                          {"Mesh": rest_cage, "Value": b.math("SUBTRACT", posed, position),
+                           "UV Map": uv(position), "Sample UV": uv(position)},
+                          data_type="FLOAT_VECTOR")
+    # Captured once for every point, so the search below runs only where the lookup missed.
+    captured = b.node("GeometryNodeCaptureAttribute", {"Geometry": right.outputs[0]}, domain="POINT")
+    captured.capture_items.new("BOOLEAN", "Inside")
+    captured.capture_items.new("VECTOR", "Moved")
+    # By name: Blender 5.2 added a Selection input before the captured items.
+    group.links.new(displacement.outputs["Is Valid"], captured.inputs["Inside"])
+    group.links.new(b.math("ADD", position, displacement.outputs["Value"]), captured.inputs["Moved"])
+    inside, moved_inside = captured.outputs["Inside"], captured.outputs["Moved"]
+    both = b.node("FunctionNodeBooleanMath", [selection, inside], operation="AND").outputs[0]
+    outside = b.node("FunctionNodeBooleanMath", [selection, inside], operation="NIMPLY").outputs[0]
+    looked_up = b.node("GeometryNodeSetPosition",
+                       {"Geometry": captured.outputs[0], "Selection": both, "Position": moved_inside})
     moved = b.node("GeometryNodeSetPosition",
-                   {"Geometry": right.outputs[0], "Selection": selection, "Position": mapped(position)})
+                   {"Geometry": looked_up.outputs[0], "Selection": outside, "Position": mapped(position)})
 
     # Grease pencil draws strokes in their order within a layer: sort them back to front by
     # their mean height along the plane's normal (the cage's rest normal, the same for every
     # triangle). Sorting works on curves only, so the drawings go through curves and back.
-    plane_normal = b.node("GeometryNodeSampleIndex", {"Geometry": rest_cage, "Value": normal, "Index": 0},
-                          data_type="FLOAT_VECTOR", domain="FACE").outputs[0]
     height = b.node("ShaderNodeVectorMath", [position, plane_normal], operation="DOT_PRODUCT").outputs["Value"]
     stroke_height = b.node("GeometryNodeFieldOnDomain", {"Value": height}, domain="CURVE", data_type="FLOAT").outputs[0]
     parts = b.node("GeometryNodeSeparateComponents", [moved.outputs[0]])

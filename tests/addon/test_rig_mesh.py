@@ -60,6 +60,27 @@ def test_mesh_follows_handles_in_any_plane(addon, mode):
     assert obj.shapedeform.status == ""
 
 
+def test_binding_rebuilds_an_older_node_group_and_its_rigs_keep_working(addon):
+    # A file made by an older extension has an older "Shape Deform" group; binding in it
+    # rebuilds that shared group in place, and the modifiers already using it keep their cage.
+    nodes = addon.shapedeform_addon.nodes
+    obj, _, right = rig_with_two_handles()
+    right.location.y += 0.4
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_mesh_points(obj)
+    group = obj.modifiers["Shape Deform"].node_group
+    group[nodes.VERSION_KEY] = nodes.VERSION - 1
+    other = grid("Other")
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert other.modifiers["Shape Deform"].node_group == group
+    assert group[nodes.VERSION_KEY] == nodes.VERSION
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), posed, atol=1e-6)
+    right.location.y -= 0.4
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), checks.mesh_points(obj), atol=1e-5)
+
+
 def test_rotating_a_handle_turns_its_region_and_area_is_kept(addon):
     obj = grid(x=16, y=8)
     rest = checks.mesh_points(obj)
