@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty
 
-from . import compat, rig, rig_format
+from . import compat, handlers, rig, rig_format
 from .errors import RigError
 
 PREFIX = "sd_bake_"
@@ -169,7 +169,8 @@ class Bake:
             A frame could not be posed (the message names the object); call :meth:`abort`.
         """
         frame = self.frames[self.done]
-        self.scene.frame_set(frame)
+        with handlers.paused():
+            self.scene.frame_set(frame)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         for obj in self.objects:
             posed = rig.pose(obj, depsgraph, final=True)  # explicitly: a bake does not rely on the handlers

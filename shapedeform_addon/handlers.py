@@ -7,6 +7,8 @@ those rigs again with the Render budget once the updates pause, so what stays on
 what renders, as Blender's viewport refines its samples when the view stops changing.
 """
 
+from contextlib import contextmanager
+
 import bpy
 from bpy.app.handlers import persistent
 
@@ -14,6 +16,18 @@ from . import handles, rig, rig_format
 
 # Writing geometry makes Blender evaluate again and call us back: ignore those calls.
 _busy = False
+
+
+@contextmanager
+def paused():
+    """Leave rigs alone while the caller poses them itself (a bake steps through frames and
+    solves each once, with the Render budget; the frame handler would solve it again)."""
+    global _busy
+    was, _busy = _busy, True
+    try:
+        yield
+    finally:
+        _busy = was
 
 
 def _report(message):
