@@ -2,8 +2,8 @@
 preconditioner (:func:`minimise`).
 
 :func:`newton` refactorises :class:`~solver.hessian.NewtonMatrix` at every iterate (exact where
-positive definite, filtered elsewhere) and searches along the step for the strong Wolfe
-conditions: the step may grow as well as shrink, since away from a minimum the filtered matrix
+positive definite, projected elsewhere) and searches along the step for the strong Wolfe
+conditions: the step may grow as well as shrink, since away from a minimum the projected matrix
 overestimates the energy's curvature. Its only knobs are the line search's two constants.
 
 :func:`minimise`, L-BFGS, serves graphs too large to refactorise at every iterate:
@@ -71,7 +71,7 @@ def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=
         step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area)
         result.refreshes += 1
         if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit and not matrix.exact:
-            # A filtered matrix is stiffer than the energy, so its short step says little of the
+            # A projected matrix is stiffer than the energy, so its short step says little of the
             # distance to the minimum (in a flat valley it may be far): ask the exact one.
             matrix.reset()
             step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area)
