@@ -93,15 +93,22 @@ class FoldPenalty:
             None when no triangle is squeezed (energy and gradient are zero).
         """
         edges, area = self._areas(v)
-        gap = np.maximum(self._floor - area, 0.0)
-        if not gap.any():
+        gap = self._floor - area
+        squeezed = np.flatnonzero(gap > 0.0)
+        if len(squeezed) == 0:
             return 0.0, None
-        energy = float(np.sum(self._scale * gap * gap))
-        # Half of d energy / d area, then the area's derivatives by the two edges.
-        slope = -self._scale * gap
-        (x1, x2), (y1, y2) = edges
-        by_edge = np.stack([np.stack([0.5 * slope * y2, -0.5 * slope * y1]),
-                            np.stack([-0.5 * slope * x2, 0.5 * slope * x1])])
+        # Only the few squeezed triangles have a term: work on those, scatter into the edges.
+        gap = gap[squeezed]
+        slope = -self._scale[squeezed] * gap  # half of d energy / d area
+        energy = -float(slope @ gap)
+        half = 0.5 * slope
+        (x1, x2), (y1, y2) = edges[..., squeezed]
+        # The area's derivatives by the two edges, coordinate-major as the edges are.
+        by_edge = np.zeros_like(edges)
+        by_edge[0, 0, squeezed] = half * y2
+        by_edge[0, 1, squeezed] = -half * y1
+        by_edge[1, 0, squeezed] = -half * x2
+        by_edge[1, 1, squeezed] = half * x1
         return energy, self._free_block_transpose @ by_edge.ravel()
 
     def terms(self, v):

@@ -2,8 +2,8 @@
 preconditioner (:func:`minimise`).
 
 :func:`newton` refactorises :class:`~solver.hessian.NewtonMatrix` at every iterate (exact where
-positive definite, filtered elsewhere) and searches along the step for the strong Wolfe
-conditions: the step may grow as well as shrink, since away from a minimum the filtered matrix
+positive definite, projected elsewhere) and searches along the step for the strong Wolfe
+conditions: the step may grow as well as shrink, since away from a minimum the projected matrix
 overestimates the energy's curvature. Its only knobs are the line search's two constants.
 
 :func:`minimise`, L-BFGS, serves graphs too large to refactorise at every iterate:
@@ -71,7 +71,7 @@ def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=
         step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area)
         result.refreshes += 1
         if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit and not matrix.exact:
-            # A filtered matrix is stiffer than the energy, so its short step says little of the
+            # A projected matrix is stiffer than the energy, so its short step says little of the
             # distance to the minimum (in a flat valley it may be far): ask the exact one.
             matrix.reset()
             step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area)
@@ -262,7 +262,8 @@ def _wolfe_search(objective, options, v, energy, slope, step):
     """A step length meeting the strong Wolfe conditions along ``step`` (Nocedal and Wright,
     algorithms 3.5 and 3.6): sufficient decrease (``options.armijo``) and a slope reduced to
     ``options.wolfe_curvature`` of the first. From the full step it doubles while the energy
-    keeps falling steeply, then narrows the bracket by safeguarded quadratic interpolation.
+    keeps falling steeply, then narrows the bracket by safeguarded cubic interpolation of the
+    energies and slopes at its two ends (quadratic where the cubic has no minimum).
 
     Returns ``(v, energy, half gradient, pose)`` at the step taken, or None when no trial
     lowers the energy (``slope`` must be negative). ``options.max_halvings`` bounds the trials.
@@ -271,19 +272,23 @@ def _wolfe_search(objective, options, v, energy, slope, step):
         return None
     curvature = options.wolfe_curvature
     low, low_energy, low_slope, best = 0.0, energy, slope, None
-    high = high_energy = None
+    high = high_energy = high_slope = None
     alpha = 1.0
     for _ in range(options.max_halvings):
         trial = v + alpha * step
         trial_energy, gradient, pose = objective.evaluate(trial)
         trial_slope = 2.0 * float(gradient @ step)
         if trial_energy > energy + options.armijo * alpha * slope or (best is not None and trial_energy >= low_energy):
-            high, high_energy = alpha, trial_energy
+            high, high_energy, high_slope = alpha, trial_energy, trial_slope
         else:
             if abs(trial_slope) <= -curvature * slope:
                 return trial, trial_energy, gradient, pose
-            if trial_slope >= 0.0:  # past the minimum along the line: bracket between here and low
-                high, high_energy = low, low_energy
+            # The minimum lies on the side the slope points to: if that is away from high (or
+            # past the largest trial so far), the old low becomes the bracket's other end. The
+            # bracket may run either way (algorithm 3.6 keeps low the lower energy), so the test
+            # is on the slope's sign relative to high - low, not on the sign alone.
+            if trial_slope * ((high - low) if high is not None else 1.0) >= 0.0:
+                high, high_energy, high_slope = low, low_energy, low_slope
             low, low_energy, low_slope, best = alpha, trial_energy, trial_slope, (trial, trial_energy, gradient, pose)
         if high is None:
             alpha *= 2.0
@@ -291,10 +296,23 @@ def _wolfe_search(objective, options, v, energy, slope, step):
         width = high - low
         if abs(width) <= 1e-12 * max(abs(high), 1.0):
             break
-        # Minimiser of the quadratic through low's value and slope and high's value, kept in
-        # the middle 80% of the bracket.
-        curve = high_energy - low_energy - low_slope * width
-        middle = low - low_slope * width * width / (2.0 * curve) if curve > 0.0 else low + 0.5 * width
         left, right = min(low, high), max(low, high)
-        alpha = float(np.clip(middle, left + 0.1 * (right - left), right - 0.1 * (right - left)))
+        alpha = float(np.clip(_interpolate(low, low_energy, low_slope, high, high_energy, high_slope),
+                              left + 0.1 * (right - left), right - 0.1 * (right - left)))
     return best
+
+
+def _interpolate(a, fa, da, b, fb, db):
+    """Minimiser of the cubic through values ``fa, fb`` and slopes ``da, db`` at ``a, b``
+    (Nocedal and Wright, equation 3.59); where it has none, of the quadratic through ``fa``,
+    ``da`` and ``fb``, or the midpoint."""
+    d1 = da + db - 3.0 * (fa - fb) / (a - b)
+    radicand = d1 * d1 - da * db
+    if radicand >= 0.0:
+        d2 = np.copysign(np.sqrt(radicand), b - a)
+        denominator = db - da + 2.0 * d2
+        if denominator != 0.0:
+            return b - (b - a) * (db + d2 - d1) / denominator
+    width = b - a
+    curve = fb - fa - da * width
+    return a - da * width * width / (2.0 * curve) if curve > 0.0 else a + 0.5 * width
