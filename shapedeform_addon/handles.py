@@ -65,8 +65,6 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     if on_rest:
         # Placed where that rest point is now, so it holds the shape as it is.
         point = rest_position(rig.posed, graph.points, graph.triangles, point[None])[0]
-    if kind == "STARCH":
-        raise RigError("Starch pins are not available yet; nothing was added")
     if kind != "POSITION":
         return _add_pin(obj, rig, int(np.argmin(np.linalg.norm(graph.points - rest_centre, axis=1))), kind)
     taken = np.zeros(graph.n, dtype=bool)

@@ -18,6 +18,7 @@ from .errors import RigError
 EDGE_COLOR = (0.2, 0.8, 1.0, 0.6)
 REGION_COLOR = (1.0, 0.5, 0.1, 1.0)
 REACH_OPACITY = 0.8
+STARCH_COLOR = (0.3, 0.55, 1.0, 0.8)
 
 _handle = None
 
@@ -30,9 +31,9 @@ def drawing_data(obj):
     dict or None
         ``edges``: (2k, 3) float32 line endpoints of the graph at its current pose;
         ``regions``: (m, 3) float32 graph points owned by handles;
-        ``reach``: (r, 3) float32 graph points overlap pins reach, and ``reach_colors``,
-        (r, 4) float32: white for in front, black for behind, as opaque as the pin's weight
-        there times its amount (up to 1).
+        ``reach``: (r, 3) float32 graph points overlap and starch pins reach, and
+        ``reach_colors``, (r, 4) float32: white for in front, black for behind, as opaque as
+        the overlap pin's weight there times its amount (up to 1); then blue for starch.
     """
     if obj is None or not obj.shapedeform.is_bound or not obj.shapedeform.show_overlay:
         return None
@@ -47,9 +48,15 @@ def drawing_data(obj):
     colors = np.zeros((len(reached), 4), np.float32)
     colors[:, :3] = (total > 0)[:, None]
     colors[:, 3] = np.minimum(np.abs(total), 1.0) * REACH_OPACITY
+    # Starch pins: tinted blue, as opaque as their weight (a stiffness of 10 or more is full).
+    stiff = rig.starch @ rig.starch_reach if len(rig.starch) else np.zeros(len(points))
+    starched = np.flatnonzero(stiff > 0)
+    starch_colors = np.tile(np.array(STARCH_COLOR, np.float32), (len(starched), 1))
+    starch_colors[:, 3] *= np.minimum(stiff[starched] / 10.0, 1.0)
     return {"edges": points[rig.graph.edges.ravel()].astype(np.float32),
             "regions": points[rig.indices].astype(np.float32),
-            "reach": points[reached].astype(np.float32), "reach_colors": colors}
+            "reach": np.concatenate([points[reached], points[starched]]).astype(np.float32),
+            "reach_colors": np.concatenate([colors, starch_colors])}
 
 
 def draw():

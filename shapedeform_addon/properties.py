@@ -66,6 +66,10 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
         name="In Front", description="On an overlap pin: how far in front of other parts the shape near it is "
                                       "where they overlap (negative: behind); pins add up where they meet",
         default=1.0, soft_min=-3.0, soft_max=3.0, update=_pin_changed)
+    stiffness: FloatProperty(
+        name="Stiffness", description="On a starch pin: how much stiffer the shape near it is (0: as the rest of "
+                                      "the shape; 10: ten times stiffer); pins add up where they meet",
+        default=10.0, min=0.0, soft_max=100.0, update=_pin_reach_changed)
     extent: FloatProperty(
         name="Extent", description="On an overlap or starch pin: how far its influence reaches through the "
                                    "shape, as a fraction of the shape's size",

@@ -46,10 +46,11 @@ class Rig:
         self.owners = np.concatenate([np.full(len(i), k) for k, (_, i, _) in enumerate(items)]) \
             if items else np.empty(0, np.int64)
         weights = {"laplacian": settings.weight_laplacian, "mvc": settings.weight_mvc, "edge": settings.weight_edge}
+        stiffness = self._stiffness(obj)
         try:
             self.deformer = solver.Deformer(self.graph, self.indices, weights, settings.preserve_area,
                                             prevent_flips=settings.prevent_flips,
-                                            coarse_copies=self.coarse_copies) \
+                                            coarse_copies=self.coarse_copies, stiffness=stiffness) \
                 if len(self.indices) else None
         except ValueError as err:
             raise RigError(f"'{obj.name}': {err}") from None
@@ -86,6 +87,15 @@ class Rig:
         self.settled = solution.converged
         return solution.positions
 
+    def _stiffness(self, obj):
+        """Per graph point, 1 plus each starch pin's stiffness times its reach; None without pins.
+        Keeps the pins' reach (``starch_reach``, (k, n)) and amounts (``starch``, (k,))."""
+        pins = rig_format.pin_items(obj, "STARCH")
+        self.starch_reach = depth.pin_weights(self.graph.points, self.graph.edges, [point for _, point in pins],
+                                              [empty.shapedeform.extent * self.graph.size for empty, _ in pins])
+        self.starch = np.array([empty.shapedeform.stiffness for empty, _ in pins], dtype=np.float64)
+        return 1.0 + self.starch @ self.starch_reach if pins else None
+
     def read_pins(self):
         """Take the overlap pins' current amounts (the active depsgraph writes animated values
         back to the original Empties, and an edit in the sidebar is there before any depsgraph)."""
@@ -102,7 +112,8 @@ class Rig:
 def signature(obj):
     """What the deformer depends on besides stored data: handles and settings."""
     s = obj.shapedeform
-    return (tuple((item.object.name, item.object.shapedeform.pin_kind, item.object.shapedeform.extent)
+    return (tuple((item.object.name, item.object.shapedeform.pin_kind, item.object.shapedeform.extent,
+                   item.object.shapedeform.stiffness if item.object.shapedeform.pin_kind == "STARCH" else None)
                   if rig_format.present(item.object) else None for item in s.handles),
             s.weight_laplacian, s.weight_mvc, s.weight_edge, s.preserve_area, s.prevent_flips)
 

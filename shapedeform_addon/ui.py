@@ -55,12 +55,13 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
         buttons = row.column(align=True)
         buttons.operator("shapedeform.add_handle", text="", icon="ADD")
         buttons.operator("shapedeform.add_handle", text="", icon=KIND_ICONS["OVERLAP"]).kind = "OVERLAP"
+        buttons.operator("shapedeform.add_handle", text="", icon=KIND_ICONS["STARCH"]).kind = "STARCH"
         buttons.operator("shapedeform.remove_handle", text="", icon="REMOVE")
         active = settings.handles[settings.active_handle].object if len(settings.handles) > settings.active_handle else None
-        if active is not None and active.shapedeform.pin_kind == "OVERLAP":
+        if active is not None and active.shapedeform.pin_kind != "POSITION":
             col = layout.column(align=True)
-            col.label(text=f"Overlap Pin '{active.name}'")
-            col.prop(active.shapedeform, "in_front")
+            col.label(text=f"{active.shapedeform.pin_kind.title()} Pin '{active.name}'")
+            col.prop(active.shapedeform, "in_front" if active.shapedeform.pin_kind == "OVERLAP" else "stiffness")
             col.prop(active.shapedeform, "extent")
         layout.prop(settings, "region_size")
         col = layout.column(align=True)

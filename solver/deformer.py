@@ -91,16 +91,20 @@ class Deformer:
     coarse_copies : solver.start.CoarseCopies, optional
         Where coarse copies of the shape are kept; pass the same one to the deformers of one
         graph (one per handle set or weights) to build its copy once. A new one by default.
+    stiffness : (n,) array_like, optional
+        A factor (> 0, default 1) on the energy terms of each point (:class:`solver.energy.Energy`):
+        above 1 a region bends and stretches less. A coarse copy the solve may start from is
+        solved without it (it only gives the start).
 
     Raises
     ------
     ValueError
-        Handles out of range or repeated, bad weights, or ``preserve_area`` with no boundary point
+        Handles out of range or repeated, bad weights or stiffness, or ``preserve_area`` with no boundary point
         free to move (all are handles or on islands without handles): the area would be fixed.
     """
 
     def __init__(self, graph, handles, weights=None, preserve_area=False, newton=None,
-                 prevent_flips=False, options=None, coarse_copies=None):
+                 prevent_flips=False, options=None, coarse_copies=None, stiffness=None):
         self.graph = graph
         self.options = Options() if options is None else options
         if not isinstance(self.options, Options):
@@ -113,7 +117,7 @@ class Deformer:
         if len(np.unique(handles)) != len(handles):
             raise ValueError("a point is given as a handle twice")
         self.handles = handles
-        self.energy = Energy(graph, weights)
+        self.energy = Energy(graph, weights, stiffness)
         self._size = graph.size  # a bounding-box measure: once, not per solve
         self.unknowns = Unknowns(graph, handles)
         self.free = self.unknowns.free

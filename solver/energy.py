@@ -27,7 +27,7 @@ from types import MappingProxyType
 from typing import NamedTuple
 
 import numpy as np
-from scipy.sparse import coo_matrix, vstack
+from scipy.sparse import coo_matrix, diags, vstack
 
 __all__ = ["DEFAULT_WEIGHTS", "Energy", "LocalFit", "mean_value_weights", "similarity_rows"]
 
@@ -109,6 +109,10 @@ class Energy:
     graph : solver.Graph
     weights : dict, optional
         Weights of the ``"laplacian"``, ``"mvc"`` and ``"edge"`` terms (default 1 each).
+    stiffness : (n,) array_like, optional
+        A factor (> 0, default 1) on every term of each point: a boundary vertex's curve rows,
+        an interior point's mean value row, and an edge's length row by the mean of its two
+        points' factors. Above 1 the region bends and stretches less (a starch pin).
 
     Attributes
     ----------
@@ -116,7 +120,7 @@ class Energy:
         ``A``, weighted.
     """
 
-    def __init__(self, graph, weights=None):
+    def __init__(self, graph, weights=None, stiffness=None):
         self.weights = dict(DEFAULT_WEIGHTS)
         for key, value in (weights or {}).items():
             if key not in DEFAULT_WEIGHTS:
@@ -134,8 +138,16 @@ class Energy:
         mvc = self._mean_value_rows(graph)
         lengths, self.length_edges = self._length_rows(graph)
         scale = {key: np.sqrt(value) for key, value in self.weights.items()}
-        self.curve_scale, self.edge_scale = scale["laplacian"], scale["edge"]
-        blocks = [scale["laplacian"] * curve, scale["mvc"] * mvc, scale["edge"] * lengths]
+        factor = self._stiffness(graph, stiffness)
+        # Per row: a term's weight times its points' stiffness (a scalar when all are 1).
+        self.curve_scale = scale["laplacian"] * (np.sqrt(factor[self.curve_points[:, 0]])
+                                                 if stiffness is not None else 1.0)
+        self.edge_scale = scale["edge"] * (np.sqrt(factor[self.length_edges].mean(axis=1))
+                                           if stiffness is not None else 1.0)
+        mvc_scale = scale["mvc"] * (np.sqrt(factor[graph.interior]) if stiffness is not None else 1.0)
+        blocks = [diags(np.tile(np.broadcast_to(self.curve_scale, len(self.curve_points)), 3)) @ curve,
+                  diags(np.broadcast_to(mvc_scale, mvc.shape[0])) @ mvc,
+                  diags(np.broadcast_to(self.edge_scale, lengths.shape[0])) @ lengths]
         self.matrix = vstack([b.tocsr() for b in blocks], format="csr")
         sizes = [b.shape[0] for b in blocks]
         self.curve_rows = slice(0, sizes[0])
@@ -152,6 +164,17 @@ class Energy:
         self._rest_direction = np.ascontiguousarray(
             (rest_edge / np.maximum(self.rest_length, 1e-300)[:, None]).T)
         self.n = n
+
+    @staticmethod
+    def _stiffness(graph, stiffness):
+        if stiffness is None:
+            return np.ones(graph.n)
+        factor = np.asarray(stiffness, dtype=np.float64).reshape(-1)
+        if factor.shape != (graph.n,):
+            raise ValueError(f"stiffness must have one value per graph point ({graph.n}), got {factor.shape}")
+        if not np.all(np.isfinite(factor)) or factor.min() <= 0:
+            raise ValueError("stiffness must be finite and > 0 at every point")
+        return factor
 
     @staticmethod
     def _curve_rows(graph):

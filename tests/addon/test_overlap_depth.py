@@ -224,11 +224,3 @@ def test_a_baked_overlap_renders_the_same_with_the_extension_disabled(addon, tmp
     finally:
         addon_utils.enable(ADDON_MODULE, default_set=True)
 
-
-def test_a_starch_pin_is_refused_with_a_message_until_it_exists(addon):
-    obj, _ = figure()
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    bpy.context.view_layer.objects.active = obj
-    with pytest.raises(RuntimeError, match="Starch pins are not available yet"):
-        bpy.ops.shapedeform.add_handle(location=(0.0, 0.0, 0.0), kind="STARCH")
-    assert len(obj.shapedeform.handles) == 0

@@ -1,0 +1,92 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Starch pins (issue 14): the shape near a starch pin bends less; its amount is keyable."""
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Matrix
+
+import rig_checks as checks
+
+
+def bar():
+    """A bar 8 long and 1 wide, bound, with a handle holding each end."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=48, y_subdivisions=6, size=1.0)
+    obj = bpy.context.active_object
+    obj.data.transform(Matrix.Diagonal((8.0, 1.0, 1.0, 1.0)))
+    bpy.context.view_layer.update()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, (-3.8, 0.0, 0.0))
+    end = checks.add_handle(obj, (3.8, 0.0, 0.0))
+    return obj, end
+
+
+def curl(end):
+    """Turn the right end a quarter turn and bring it over the middle: the bar curls."""
+    end.rotation_euler.z = np.pi / 2
+    end.location = (1.5, 2.5, 0.0)
+    bpy.context.view_layer.update()
+
+
+def turning(rest, posed, region):
+    """How far the bar's direction turns across ``region`` (a mask): the angle between the
+    best-fit directions of its first and last thirds along the bar."""
+    xs = rest[region, 0]
+    lo, hi = np.quantile(xs, [1 / 3, 2 / 3])
+    ahead = posed[region][xs > hi, :2].mean(axis=0) - posed[region][xs < lo, :2].mean(axis=0)
+
+    def direction(mask):
+        points = posed[region][mask, :2]
+        axis = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)[2][0]
+        return axis * np.sign(axis @ ahead)
+
+    return float(np.arccos(np.clip(direction(xs < lo) @ direction(xs > hi), -1.0, 1.0)))
+
+
+def test_a_starch_pin_halves_the_bend_inside_its_extent_and_its_amount_keys(addon):
+    obj, end = bar()
+    rest = checks.mesh_points(obj).copy()
+    middle = np.abs(rest[:, 0]) < 1.2
+    curl(end)
+    plain = turning(rest, checks.evaluated_mesh_points(obj), middle)
+    assert plain > 0.15, "the bar does not bend through its middle"
+
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.add_handle(location=(0.0, 0.0, 0.0), kind="STARCH") == {"FINISHED"}
+    pin = obj.shapedeform.handles[-1].object
+    assert pin.shapedeform.pin_kind == "STARCH" and pin.shapedeform.stiffness == 10.0
+    pin.shapedeform.extent = 0.25  # 2 of the bar's 8.06 through the shape, full strength to 1.4
+    pin.shapedeform.stiffness = 30.0
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    starched = turning(rest, checks.evaluated_mesh_points(obj), middle)
+    assert starched < 0.5 * plain, f"bend across the starched middle {starched:.3f}, plain {plain:.3f}"
+
+    # Keyed: no stiffness at frame 1, starched at frame 2; frames agree in any order.
+    pin.shapedeform.stiffness = 0.0
+    pin.keyframe_insert("shapedeform.stiffness", frame=1)
+    pin.shapedeform.stiffness = 30.0
+    pin.keyframe_insert("shapedeform.stiffness", frame=2)
+    scene = bpy.context.scene
+    scene.frame_set(2)
+    at_two = checks.evaluated_mesh_points(obj).copy()
+    scene.frame_set(1)
+    assert turning(rest, checks.evaluated_mesh_points(obj), middle) == pytest.approx(plain, rel=1e-3)
+    scene.frame_set(2)
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), at_two, atol=1e-6)
+    assert turning(rest, at_two, middle) < 0.5 * plain
+
+
+def test_starch_pins_show_in_the_sidebar_and_overlay(addon):
+    from test_ui_overlay import drawn
+
+    obj, _ = bar()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.add_handle(location=(0.0, 0.0, 0.0), kind="STARCH") == {"FINISHED"}
+    bpy.context.view_layer.objects.active = obj
+    items = drawn(bpy.context)
+    assert "stiffness" in items and "extent" in items and "in_front" not in items
+    obj.shapedeform.show_overlay = True
+    data = addon.shapedeform_addon.overlay.drawing_data(obj)
+    blue = data["reach_colors"][:, 2] > data["reach_colors"][:, 0]
+    assert blue.sum() > 10 and np.all(np.abs(data["reach"][blue, 0]) < 0.25 * 8.07)
