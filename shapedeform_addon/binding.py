@@ -89,15 +89,15 @@ def unbind(obj):
         return lost
     source = sources.module_for(obj)
     if settings.cage is None:
-        lost = source.restore_legacy(obj)
+        lost = source.restore_legacy(obj) + source.unbind(obj)
     else:
         bake.clear(obj)
+        lost = source.unbind(obj)  # while the cage still says where rig space is
         cage = settings.cage
         mesh = cage.data
         bpy.data.objects.remove(cage)
         if mesh.users == 0:
             bpy.data.meshes.remove(mesh)
-    lost += source.unbind(obj)
     _forget_settings(obj)
     handles.remove_all(obj)
     rig.forget(obj)

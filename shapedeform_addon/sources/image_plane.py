@@ -10,6 +10,7 @@ given back on unbind, untouched; the cut-out is then deleted.
 
 import bpy
 import numpy as np
+from mathutils import Matrix
 
 from ...solver.outline import outline_graph
 from ...solver.rigging.handles import apply_affine
@@ -80,9 +81,25 @@ def prepare(obj, settings):
 
 
 def unbind(obj):
+    """Give the quad back, where the picture is now.
+
+    The quad was kept in the space the object was bound in, which is the cage's (rig space).
+    Apply Rotation & Scale while bound changes the object's space under the cut-out (and moves
+    the cage's transform to keep it in place): the quad then gets the same change, as Apply
+    would have given it (a copy, when other objects use the quad too). Call while the cage
+    still exists.
+    """
     original = obj.shapedeform.original_data
     if original is None:
         return []
+    cage = obj.shapedeform.cage
+    if cage is not None:
+        to_object = np.linalg.solve(np.array(obj.matrix_world, dtype=np.float64),
+                                    np.array(cage.matrix_world, dtype=np.float64))
+        if not np.allclose(to_object, np.eye(4), rtol=0.0, atol=1e-6):
+            if original.users > 1:  # this object's pointer, and others'
+                original = original.copy()
+            original.transform(Matrix(to_object.tolist()))
     cutout = obj.data
     obj.data = original
     obj.shapedeform.original_data = None
