@@ -251,6 +251,7 @@ class Machine:
         self.rng = random.Random(seed)
         self.log = []
         self.refusals = collections.Counter()
+        self.checked = collections.Counter()  # how often each check compared something
         self.model = Model()
         self.versions = 0
         self.history = []  # models, one per undo step
@@ -353,7 +354,14 @@ class Machine:
         settings = obj.shapedeform
         bound = settings.is_bound
         was_owner = self.addon.rig_format.is_owner(obj)
-        cutout = world_of(obj, data_points("MESH", obj.data)) if settings.kind == "IMAGE" and was_owner else None
+        cutout = quad = None
+        if settings.kind == "IMAGE" and was_owner:
+            cutout = world_of(obj, data_points("MESH", obj.data))
+            # Its quad comes back where the picture is: changed as Apply (while bound) changed
+            # the object's space, which is where the cage's transform went.
+            to_object = np.linalg.solve(np.array(obj.matrix_world), np.array(settings.cage.matrix_world))
+            quad = data_points("MESH", settings.original_data).astype(np.float64) @ to_object[:3, :3].T \
+                + to_object[:3, 3]
         if not self.call(bpy.ops.shapedeform.unbind, "never" if bound else "must"):
             return
         self.new_version()
@@ -370,9 +378,14 @@ class Machine:
         if shown.tobytes() != own.tobytes():
             raise StepFailed(f"after unbind '{obj.name}' does not show its own data exactly "
                              f"(off by {np.abs(shown - own).max() if shown.shape == own.shape else shown.shape})")
+        self.checked["unbind exact"] += 1
+        if quad is not None:
+            self.expect_rest[("MESH", obj.data.name)] = quad
         quad = self.model.quads.pop(obj.name, None)
         if quad is not None and was_owner:
-            if obj.data.name != quad:
+            # Its own quad, or after Apply while bound a changed copy when others share it.
+            if obj.data.name != quad and not (len(obj.data.polygons) == 1 and quad in bpy.data.meshes
+                                              and bpy.data.meshes[quad].users > 0):
                 raise StepFailed(f"'{obj.name}' did not get its quad '{quad}' back (has '{obj.data.name}')")
             corners = world_of(obj, data_points("MESH", obj.data))
             lo, hi = corners.min(axis=0), corners.max(axis=0)
@@ -530,6 +543,8 @@ class Machine:
     def op_bake(self):
         obj = self.pick_bound()
         start = self.rng.randint(1, FRAMES[1] - 4)
+        if self.rng.random() < 0.5:  # over the frame shown, so the bake is compared at once
+            start = min(max(self.scene.frame_current - self.rng.randint(0, 2), 1), FRAMES[1] - 4)
         end = start + self.rng.randint(0, 3)
         self.log.append(f"bake {obj.name!r} frames {start}-{end}")
         select_only(obj)
@@ -647,6 +662,7 @@ class Machine:
             if obj.mode != "OBJECT":
                 raise StepFailed(f"'{obj.name}' was left in {obj.mode} mode")
         self.check_rest()
+        self.check_wiring()
         self.check_fresh_solve()
         depsgraph = self.depsgraph()
         shown = {}
@@ -672,6 +688,39 @@ class Machine:
                     else f"{len(old)} points became {len(points)}"
                 raise StepFailed(f"the data of {key[1]!r} changed though nobody edited it ({how})")
         self.model.rest = {key: points.tobytes() for key, points in current.items()}
+
+    def check_wiring(self):
+        """Every bound shape's modifier reads its rig's cage in its owner's space; every cage
+        and handle in the scene belongs to a bound rig (nothing left behind)."""
+        addon = self.addon
+        for obj in shapes(self.scene):
+            settings = obj.shapedeform
+            modifiers = addon.rig_format.modifiers_of(obj)
+            if not settings.is_bound:
+                if modifiers or settings.cage is not None:
+                    raise StepFailed(f"'{obj.name}' is not bound but keeps a rig's modifier or cage")
+                continue
+            if settings.cage is None:
+                continue  # a duplicate whose rig's owner was unbound: it shows its data
+            if len(modifiers) != 1:
+                raise StepFailed(f"'{obj.name}' has {len(modifiers)} Shape Deform modifiers")
+            ids = addon.nodes.input_identifiers(modifiers[0].node_group)
+            cage = addon.compat.modifier_input(modifiers[0], ids[addon.nodes.CAGE_INPUT])
+            owner = addon.compat.modifier_input(modifiers[0], ids[addon.nodes.OWNER_INPUT])
+            if cage != settings.cage or owner != settings.cage.shapedeform.rig:
+                raise StepFailed(f"'{obj.name}': its modifier reads cage {getattr(cage, 'name', None)!r} "
+                                 f"of {getattr(owner, 'name', None)!r}, its rig is "
+                                 f"{settings.cage.name!r} of {settings.cage.shapedeform.rig.name!r}")
+        for obj in self.scene.objects:
+            rig = obj.shapedeform.rig
+            if rig is None:
+                continue
+            if not addon.rig_format.is_owner(rig):
+                raise StepFailed(f"'{obj.name}' is left over from the rig of '{rig.name}', which is gone")
+            if obj.type == "EMPTY" and obj not in [item.object for item in rig.shapedeform.handles]:
+                raise StepFailed(f"handle '{obj.name}' is not in the handle list of '{rig.name}'")
+            if obj.type == "MESH" and rig.shapedeform.cage != obj:
+                raise StepFailed(f"'{obj.name}' is a cage '{rig.name}' does not use")
 
     def check_fresh_solve(self):
         """Solve every rig again from what the file keeps: the pose shown must be that solve.
@@ -711,6 +760,9 @@ class Machine:
                 self.solved[fingerprint] = solved
                 while len(self.solved) > POSES_KEPT:
                     self.solved.popitem(last=False)
+            else:
+                self.checked["fresh solve reused"] += 1
+            self.checked["fresh solve, baked" if baked else "fresh solve"] += 1
             if isinstance(solved, str):
                 if not settings.status:
                     raise StepFailed(f"'{owner.name}' cannot be solved ({solved}) and says nothing")
@@ -752,6 +804,7 @@ class Machine:
                 self.poses.popitem(last=False)
             return
         self.poses.move_to_end(key)
+        self.checked["state and frame seen again"] += 1
         if set(seen) != set(shown):
             raise StepFailed(f"the objects changed in the same state: {sorted(seen)} vs {sorted(shown)}")
         for name, points in shown.items():
@@ -812,3 +865,4 @@ def test_random_everyday_operations_keep_the_invariants(addon, capfd, tmp_path):
     if TRACE:
         with capfd.disabled():
             print("refusals:", dict(machine.refusals))
+            print("checked:", dict(machine.checked))
