@@ -195,3 +195,26 @@ def test_an_image_plane_unbound_after_apply_gets_its_quad_back_where_its_picture
     assert (obj.data == quad) != shared
     if shared:
         assert twin.data == quad and checks.mesh_points(twin).tobytes() == quad_rest.tobytes()
+
+
+@pytest.mark.parametrize("linked", [False, True], ids=["Shift+D", "Alt+D"])
+def test_a_duplicate_whose_rig_was_unbound_unbinds_without_a_false_warning(addon, capfd, linked):
+    """The owner unbound first, its duplicate has no cage left: unbinding it must not go the way
+    of an older version's rig and warn that its rest shape is lost (it never was written).
+    Found by the state-machine test, seeds 21 and 22 with 1,500 steps."""
+    original, left, right = rig_with_two_handles()
+    rest = checks.mesh_points(original).copy()
+    copy = _duplicate(original, linked)
+    right.location.y += 0.3
+    bpy.context.view_layer.update()
+    unbind(original)
+    assert checks.evaluated_mesh_points(copy).tobytes() == rest.tobytes()  # no cage: it shows its data
+    bpy.context.view_layer.objects.active = copy
+    with pytest.raises(RuntimeError, match="its rig was removed"):
+        bpy.ops.shapedeform.bake(frame_start=1, frame_end=2)
+    capfd.readouterr()
+    unbind(copy)
+    out = capfd.readouterr()
+    assert "could not give back" not in out.out + out.err
+    assert not copy.shapedeform.is_bound and not copy.modifiers
+    assert checks.mesh_points(copy).tobytes() == rest.tobytes()
