@@ -22,9 +22,12 @@ After every step (issue 15, item 6):
 - the pose at a frame does not depend on the order frames were visited (nor on undo and redo,
   nor on saving and reopening): every pose shown is remembered with the state it was shown in
   and compared when that state and frame come back;
-- the shown pose is a fresh solve: ``rig.forget()`` then posing every rig again gives the same
-  evaluated points to 1e-6 of the object's size (and a fresh bake plays the live pose);
-- Apply Rotation & Scale does not move the shape.
+- the shown pose is a fresh solve: after ``rig.forget()``, posing every rig again gives the same
+  evaluated points to 1e-6 of each object's size (and the same status); while a bake is fresh,
+  its baked frames play that solve;
+- every bound object's modifier reads its rig's cage in its owner's space, and no cage or
+  handle outlives its rig;
+- Apply Rotation & Scale does not move the shape (uniform scale; see ``op_apply``).
 
 A failure names the seed and lists the steps so far; the same seed and step count replay it:
 
@@ -663,7 +666,6 @@ class Machine:
                 raise StepFailed(f"'{obj.name}' was left in {obj.mode} mode")
         self.check_rest()
         self.check_wiring()
-        self.check_fresh_solve()
         depsgraph = self.depsgraph()
         shown = {}
         for obj in shapes(self.scene):
@@ -671,6 +673,7 @@ class Machine:
             if not np.all(np.isfinite(points)):
                 raise StepFailed(f"'{obj.name}' shows non-finite positions")
             shown[obj.name] = points
+        self.check_fresh_solve(shown)
         self.check_frame_order(shown)
         self.echo(self.capfd.readouterr())
 
@@ -722,58 +725,78 @@ class Machine:
             if obj.type == "MESH" and rig.shapedeform.cage != obj:
                 raise StepFailed(f"'{obj.name}' is a cage '{rig.name}' does not use")
 
-    def check_fresh_solve(self):
-        """Solve every rig again from what the file keeps: the pose shown must be that solve.
+    def check_fresh_solve(self, shown):
+        """Forget every rig and pose it again: the objects must show what they showed.
 
-        For each rig owner a new rig is built (as after ``rig.forget()``) and solved for the
-        handles' evaluated transforms; its cage points must be the cage's shown points to 1e-6
-        of the rig's size (a baked rig's cage plays its bake: checked while the bake is fresh,
-        on a baked frame). The object and its duplicates show the cage through their modifier,
-        from the cage, their own data and their transforms alone, so a right cage is a right
-        pose. The fresh rig is handed the coarse copies of its graph that the solver starts
-        from (a cache keyed by the graph's points, as a rig rebuilt after a handle edit gets
-        them): building those is most of building a rig. A solve is a function of what goes
-        into it (stored graph, settings, handles' regions and transforms): when all of that
-        is bit-identical to a solve done before, its result is reused. The add-on's own cache
-        of built rigs is left alone, so later steps still run on rigs built before them (a
-        stale cache is part of what this test looks for).
+        Each rig owner gets a rig built anew from what the file keeps (``rig.forget()``),
+        handed only the coarse copies of its graph that the solver starts from (a cache keyed by
+        the graph's points, as a rig rebuilt after a handle edit gets them: building those is
+        most of building a rig), and is posed; every shape must then evaluate to what it showed,
+        to 1e-6 of its size, and say the same status. A baked rig's cage plays its bake: while
+        the bake is fresh, on a baked frame, that must be the live solve. The add-on's own cache
+        of built rigs is put back afterwards, so later steps still run on rigs built before them
+        (a stale cache is part of what this test looks for).
+
+        A solve is a function of what goes into it (the stored graph, settings, handles' regions
+        and transforms): when that is bit-identical to a solve checked before and every cage
+        still holds that solve's points, posing again would write the same cages, and the check
+        is done.
         """
         rig, rig_format = self.addon.rig, self.addon.rig_format
         depsgraph = self.depsgraph()
-        for owner in rig_format.owners(self.scene):
-            baked = rig_format.is_baked(owner)
-            if baked and not self.bake_is_fresh(owner):
-                continue
-            settings = owner.shapedeform
-            fingerprint = self.fingerprint(owner, depsgraph)
-            solved = self.solved.get(fingerprint)
-            if solved is None:
-                previous = rig._cache.get(owner.session_uid) or self.coarse.get(owner.name)
+        owners = [o for o in rig_format.owners(self.scene)
+                  if not rig_format.is_baked(o) or self.bake_is_fresh(o)]
+        prints = {o.name: self.fingerprint(o, depsgraph) for o in owners}
+        if all(self.holds(o, self.solved.get(prints[o.name]), depsgraph) for o in owners):
+            self.checked["fresh solve known"] += 1
+            return
+        self.checked["fresh solve"] += 1
+        statuses = {o.name: o.shapedeform.status for o in shapes(self.scene)}
+        kept = dict(rig._cache)
+        rig.forget()
+        try:
+            for owner in owners:
+                previous = kept.get(owner.session_uid) or self.coarse.get(owner.name)
                 try:
                     fresh = rig.Rig(owner, previous=previous)
-                    positions = fresh.solve(fresh.frames(owner, depsgraph), settings.render_iterations)
-                    solved = fresh.cage_points(positions)
-                except self.addon.errors.RigError as err:
-                    solved = str(err)
+                except self.addon.errors.RigError:
+                    fresh = None  # posing says why, in the status
+                if fresh is not None:
+                    rig._cache[owner.session_uid] = self.coarse[owner.name] = fresh
+                if rig_format.is_baked(owner):
+                    self.checked["fresh bake played"] += 1
+                    live = rig.pose(owner, depsgraph)  # solved, not written: the bake plays
+                    played = evaluated_points(owner.shapedeform.cage, depsgraph)
+                    self.close(played, live.cage_points(live.posed).astype(np.float64), TOLERANCE,
+                               f"'{owner.name}' plays a bake that is not the live pose at frame "
+                               f"{self.scene.frame_current}")
                 else:
-                    self.coarse[owner.name] = fresh
-                self.solved[fingerprint] = solved
+                    rig.pose_safely(owner, depsgraph)
+            depsgraph.update()
+            for name, points in shown.items():
+                obj = self.obj(name)
+                self.close(evaluated_points(obj, depsgraph), points, TOLERANCE,
+                           f"'{name}' shows a pose a fresh solve does not give")
+                if obj.shapedeform.status != statuses[name]:
+                    raise StepFailed(f"'{name}': a fresh solve says {obj.shapedeform.status!r}, "
+                                     f"the shown pose said {statuses[name]!r}")
+            for owner in owners:
+                self.solved[prints[owner.name]] = data_points("MESH", owner.shapedeform.cage.data).copy() \
+                    if not rig_format.is_baked(owner) else evaluated_points(owner.shapedeform.cage, depsgraph)
                 while len(self.solved) > POSES_KEPT:
                     self.solved.popitem(last=False)
-            else:
-                self.checked["fresh solve reused"] += 1
-            self.checked["fresh solve, baked" if baked else "fresh solve"] += 1
-            if isinstance(solved, str):
-                if not settings.status:
-                    raise StepFailed(f"'{owner.name}' cannot be solved ({solved}) and says nothing")
-                continue
-            if settings.status and not baked:
-                raise StepFailed(f"'{owner.name}' says {settings.status!r} though it solves")
-            cage = settings.cage
-            shown = evaluated_points(cage, depsgraph) if baked else data_points("MESH", cage.data)
-            what = f"plays a bake that is not the live pose at frame {self.scene.frame_current}" if baked \
-                else "shows a pose that a fresh solve does not give"
-            self.close(shown, solved.astype(np.float64), TOLERANCE, f"'{owner.name}' {what}")
+        finally:
+            rig._cache.clear()
+            rig._cache.update(kept)
+
+    def holds(self, owner, solved, depsgraph):
+        """Whether the cage of ``owner`` shows exactly the points ``solved`` (None: unknown)."""
+        if solved is None:
+            return False
+        cage = owner.shapedeform.cage
+        shown = evaluated_points(cage, depsgraph) if self.addon.rig_format.is_baked(owner) \
+            else data_points("MESH", cage.data)
+        return shown.tobytes() == solved.tobytes()
 
     def fingerprint(self, owner, depsgraph):
         """Everything a rig's solve depends on, as bytes."""
