@@ -16,6 +16,7 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.handles import apply_affine
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import fit_affine, image_cutout
+from .. import rig_format
 from . import Prepared, RigError, mesh as mesh_source
 
 # Shared with meshes once the cut-out is in place.
@@ -94,8 +95,7 @@ def unbind(obj):
         return []
     cage = obj.shapedeform.cage
     if cage is not None:
-        to_object = np.linalg.solve(np.array(obj.matrix_world, dtype=np.float64),
-                                    np.array(cage.matrix_world, dtype=np.float64))
+        to_object = np.linalg.solve(np.array(obj.matrix_world, dtype=np.float64), rig_format.rig_space(obj))
         if not np.allclose(to_object, np.eye(4), rtol=0.0, atol=1e-6):
             if original.users > 1:  # this object's pointer, and others'
                 original = original.copy()

@@ -363,7 +363,8 @@ class Machine:
             cutout = world_of(obj, data_points("MESH", obj.data))
             # Its quad comes back where the picture is: changed as Apply (while bound) changed
             # the object's space, which is where the cage's transform went.
-            to_object = np.linalg.solve(np.array(obj.matrix_world), np.array(settings.cage.matrix_world))
+            evaluated = settings.cage.evaluated_get(self.depsgraph())
+            to_object = np.linalg.solve(np.array(obj.matrix_world), np.array(evaluated.matrix_world))
             quad = data_points("MESH", settings.original_data).astype(np.float64) @ to_object[:3, :3].T \
                 + to_object[:3, 3]
         if not self.call(bpy.ops.shapedeform.unbind, "never" if bound else "must"):
