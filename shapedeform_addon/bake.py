@@ -145,7 +145,8 @@ class Bake:
         for obj in self.objects:
             settings = obj.shapedeform
             if settings.cage is None:
-                raise RigError(f"'{obj.name}' has no cage (bound by an older version?): unbind and bind it again")
+                raise RigError(f"'{obj.name}' has no cage (its rig was removed, or an older version bound it): "
+                               "unbind it and bind it again")
             if not any(rig_format.present(item.object) for item in settings.handles):
                 raise RigError(f"'{obj.name}' has no handles: nothing moves, nothing to bake")
         self.frames = list(frames)

@@ -78,6 +78,10 @@ def unbind(obj):
     settings = obj.shapedeform
     if not settings.is_bound:
         raise RigError(f"'{obj.name}' is not bound")
+    # Only a rig made by an older version has rest points to give back. A modern rig without a
+    # cage (a duplicate whose rig's owner was unbound, or a cage deleted by hand) never wrote
+    # the object's data: there is nothing to restore.
+    legacy = rig_format.is_legacy(obj)
     for modifier in rig_format.modifiers_of(obj):
         obj.modifiers.remove(modifier)
     lost = []
@@ -89,10 +93,10 @@ def unbind(obj):
         return lost
     source = sources.module_for(obj)
     if settings.cage is None:
-        lost = source.restore_legacy(obj) + source.unbind(obj)
+        lost = (source.restore_legacy(obj) if legacy else []) + source.unbind(obj)
     else:
         bake.clear(obj)
-        lost += source.unbind(obj)  # while the cage is there: it tells what transform was applied
+        lost = source.unbind(obj)  # while the cage is there: it tells what transform was applied
         cage = settings.cage
         mesh = cage.data
         bpy.data.objects.remove(cage)

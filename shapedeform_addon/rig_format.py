@@ -228,9 +228,19 @@ def active_rig(context):
 
 
 def rig_space(obj):
-    """World matrix (4, 4) of the owner's rig space: the cage's (the owner's at bind time)."""
+    """World matrix (4, 4) of the owner's rig space: the cage's (the owner's at bind time).
+
+    Read through the cage's relation to its owner: Blender may leave a hidden object's own
+    world matrix stale (identity after some undo steps), though it evaluates it right.
+    """
     cage = obj.shapedeform.cage
-    return np.array((cage if cage is not None else obj).matrix_world, dtype=np.float64)
+    world = np.array(obj.matrix_world, dtype=np.float64)
+    if cage is None:
+        return world
+    if cage.parent == obj:
+        return world @ np.array(cage.matrix_parent_inverse, dtype=np.float64) \
+            @ np.array(cage.matrix_basis, dtype=np.float64)
+    return np.array(cage.matrix_world, dtype=np.float64)
 
 
 def rig_to_object(obj):

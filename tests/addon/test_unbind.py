@@ -160,3 +160,61 @@ def test_a_grease_pencil_rig_keeps_working_when_a_keyframe_is_deleted(addon):
     assert [o.name for o in bpy.data.objects] == ["Monkey"]
     assert not any("Handles" in c.name for c in bpy.data.collections)
     assert checks.drawing_points(lines.current_frame().drawing).tobytes() == lines_rest.tobytes()
+
+
+@pytest.mark.parametrize("shared", [False, True], ids=["own quad", "quad shared with a linked copy"])
+def test_an_image_plane_unbound_after_apply_gets_its_quad_back_where_its_picture_is(addon, tmp_path, shared):
+    """Apply Rotation & Scale on a bound image plane changes its cut-out; the quad it gets back
+    on unbind gets the same change (found by the state-machine test, seed 4)."""
+    from test_rig_image_plane import import_picture
+
+    obj, _ = import_picture(tmp_path)
+    quad = obj.data
+    quad_rest = checks.mesh_points(obj).copy()
+    twin = None
+    if shared:  # an unbound linked duplicate keeps showing the quad as it was
+        twin = _duplicate(obj, linked=True)
+        bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    obj.rotation_euler = (0.4, 0.0, 0.3)
+    obj.scale = (1.5, 1.5, 1.5)
+    bpy.context.view_layer.update()
+    to_world = lambda o, p: p @ np.array(o.matrix_world)[:3, :3].T + np.array(o.matrix_world)[:3, 3]  # noqa: E731
+    cutout = to_world(obj, checks.mesh_points(obj))
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.object.transform_apply(location=False, rotation=True, scale=True) == {"FINISHED"}
+    np.testing.assert_allclose(to_world(obj, checks.mesh_points(obj)), cutout, atol=1e-5)
+
+    unbind(obj)
+    corners = to_world(obj, checks.mesh_points(obj))
+    assert np.all(cutout.min(axis=0) > corners.min(axis=0) - 1e-5)
+    assert np.all(cutout.max(axis=0) < corners.max(axis=0) + 1e-5)
+    assert (obj.data == quad) != shared
+    if shared:
+        assert twin.data == quad and checks.mesh_points(twin).tobytes() == quad_rest.tobytes()
+
+
+@pytest.mark.parametrize("linked", [False, True], ids=["Shift+D", "Alt+D"])
+def test_a_duplicate_whose_rig_was_unbound_unbinds_without_a_false_warning(addon, capfd, linked):
+    """The owner unbound first, its duplicate has no cage left: unbinding it must not go the way
+    of an older version's rig and warn that its rest shape is lost (it never was written).
+    Found by the state-machine test, seeds 21 and 22 with 1,500 steps."""
+    original, left, right = rig_with_two_handles()
+    rest = checks.mesh_points(original).copy()
+    copy = _duplicate(original, linked)
+    right.location.y += 0.3
+    bpy.context.view_layer.update()
+    unbind(original)
+    assert checks.evaluated_mesh_points(copy).tobytes() == rest.tobytes()  # no cage: it shows its data
+    bpy.context.view_layer.objects.active = copy
+    with pytest.raises(RuntimeError, match="its rig was removed"):
+        bpy.ops.shapedeform.bake(frame_start=1, frame_end=2)
+    capfd.readouterr()
+    unbind(copy)
+    out = capfd.readouterr()
+    assert "could not give back" not in out.out + out.err
+    assert not copy.shapedeform.is_bound and not copy.modifiers
+    assert checks.mesh_points(copy).tobytes() == rest.tobytes()
