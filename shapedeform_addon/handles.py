@@ -97,7 +97,7 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     item["indices"] = region.astype(np.int32)
     item["offsets"] = offsets.ravel()
     settings.active_handle = len(settings.handles) - 1
-    rigs.forget(obj)
+    rigs.invalidate(obj)
     return empty
 
 
@@ -116,7 +116,7 @@ def _add_pin(obj, rig, point, kind):
     item.object = empty
     item[rig_format.PIN_POINT] = point
     obj.shapedeform.active_handle = len(obj.shapedeform.handles) - 1
-    rigs.forget(obj)
+    rigs.invalidate(obj)
     return empty
 
 
@@ -147,7 +147,7 @@ def remove(obj, empties):
                     bpy.data.objects.remove(empty)
                 removed += 1
     settings.active_handle = min(settings.active_handle, max(len(settings.handles) - 1, 0))
-    rigs.forget(obj)
+    rigs.invalidate(obj)
     return removed
 
 

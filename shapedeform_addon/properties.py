@@ -15,7 +15,7 @@ def _settings_changed(self, context):
     from . import rig  # late: rig imports this module
     owner = self.id_data
     if isinstance(owner, bpy.types.Object) and self.is_bound:
-        rig.forget(owner)
+        rig.invalidate(owner)
         rig.pose_safely(owner, context.evaluated_depsgraph_get())
 
 
@@ -31,7 +31,7 @@ def _pin_reach_changed(self, context):
     from . import rig
     owner = self.rig
     if owner is not None and owner.shapedeform.is_bound:
-        rig.forget(owner)
+        rig.invalidate(owner)
         rig.pose_safely(owner, context.evaluated_depsgraph_get())
 
 

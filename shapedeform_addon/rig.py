@@ -130,6 +130,14 @@ def get(obj):
     return rig
 
 
+def invalidate(obj):
+    """Have the cached rig of ``obj`` rebuilt on next use, reusing its coarse copies (handles or
+    settings changed; the graph did not)."""
+    cached = _cache.get(obj.original.session_uid)
+    if cached is not None:
+        cached.signature = None
+
+
 def forget(obj=None):
     """Drop the cached rig of ``obj`` (of every object when None): rebuilt on next use."""
     if obj is None:
