@@ -37,9 +37,9 @@ def flat_material(name, colour):
     return material
 
 
-def render(path, engine="BLENDER_WORKBENCH", size=160, samples=8):
+def render(path, engine="BLENDER_WORKBENCH", size=160, samples=8, color_type="MATERIAL"):
     """Render the scene's camera to ``path`` and return its pixels, (size, size, 4), rows from
-    the bottom. Workbench shows material colours flat; Cycles runs on the CPU."""
+    the bottom. Workbench shows material colours (or textures) flat; Cycles runs on the CPU."""
     scene = bpy.context.scene
     scene.render.engine = engine
     scene.render.resolution_x = scene.render.resolution_y = size
@@ -48,7 +48,7 @@ def render(path, engine="BLENDER_WORKBENCH", size=160, samples=8):
     scene.view_settings.view_transform = "Standard"
     if engine == "BLENDER_WORKBENCH":
         shading = scene.display.shading
-        shading.light, shading.color_type = "FLAT", "MATERIAL"
+        shading.light, shading.color_type = "FLAT", color_type
         shading.background_type = "WORLD"
     else:
         scene.cycles.device, scene.cycles.samples = "CPU", samples

@@ -71,11 +71,13 @@ def swing_arm_across(obj):
     return tip
 
 
-def part_shares(obj, arm, camera, pixels, torso=None):
-    """(arm share, torso share) of the pixels where the evaluated arm and torso overlap."""
+def part_shares(obj, arm, camera, pixels, torso=None, margin=None):
+    """(arm share, torso share) of the pixels where the evaluated arm and torso overlap, at least
+    ``margin`` inside (1.5 pixels by default)."""
     torso = ~arm if torso is None else torso
+    margin = 1.5 * camera.data.ortho_scale / SIZE if margin is None else margin
     overlap = renders.overlap_pixels(camera, SIZE, renders.covered(obj, arm), renders.covered(obj, torso),
-                                     margin=1.5 * camera.data.ortho_scale / SIZE)
+                                     margin=margin)
     assert overlap.sum() > 50, "the pose does not overlap the arm with the torso"
     return shares(pixels[overlap])
 
@@ -224,3 +226,53 @@ def test_a_baked_overlap_renders_the_same_with_the_extension_disabled(addon, tmp
     finally:
         addon_utils.enable(ADDON_MODULE, default_set=True)
 
+
+
+def figure_picture(folder):
+    """A picture with alpha of a blue torso and a red arm reaching right from its top, imported
+    as a plane lying in XY (``+Z``); returns the object and the picture's (width, height) in
+    Blender units and pixels' bounds of the torso."""
+    w, h = 96, 96
+    pixels = np.zeros((h, w, 4), np.float32)
+    torso, arm = (slice(4, 92), slice(20, 44)), (slice(64, 76), slice(44, 90))
+    pixels[torso] = TORSO
+    pixels[arm] = ARM
+    image = bpy.data.images.new("figure", w, h, alpha=True)
+    image.pixels.foreach_set(pixels.ravel())
+    image.filepath_raw = str(folder / "figure.png")
+    image.file_format = "PNG"
+    image.save()
+    bpy.data.images.remove(image)
+    assert bpy.ops.image.import_as_mesh_planes(files=[{"name": "figure.png"}], directory=str(folder),
+                                               align_axis="+Z", shader="SHADELESS") == {"FINISHED"}
+    obj = bpy.context.active_object
+    corners = checks.mesh_points(obj)
+    low, high = corners.min(axis=0)[:2], corners.max(axis=0)[:2]
+
+    def at(col, row):  # a pixel's place on the plane (rows count from the bottom)
+        return tuple(low + (np.array([col, row]) / [w, h]) * (high - low)) + (0.0,)
+    return obj, at, low[0] + 44 / w * (high - low)[0]
+
+
+def test_an_image_plane_folded_over_itself_renders_one_layer_in_front(addon, tmp_path):
+    obj, at, shoulder_x = figure_picture(tmp_path)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, at(32, 10))
+    checks.add_handle(obj, at(32, 50))
+    tip = checks.add_handle(obj, at(86, 70))
+    tip.location = at(2, 60)
+    tip.rotation_euler.z = 3.0
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    # The cut-out's faces: the arm's are those right of the shoulder at rest.
+    centres = np.array([p.center.x for p in obj.data.polygons])
+    arm = centres > shoulder_x + 0.02
+    middle = np.array(at(48, 48)[:2])
+    camera = renders.camera_over(middle, 1.3)
+    pixels = renders.render(tmp_path / "image_plane.png", size=SIZE, color_type="TEXTURE")
+    # A cut-out reaches about a texel past the picture's edge (transparent texels): judge the
+    # overlap inside that, where both layers show their picture.
+    texel = (np.array(at(1, 1)) - np.array(at(0, 0)))[0]
+    arm_share, torso_share = part_shares(obj, arm, camera, pixels, margin=3 * texel)
+    assert arm_share >= 0.97, f"arm {arm_share:.3f}, torso {torso_share:.3f}"
