@@ -15,27 +15,21 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from benchmarks import random_drags  # noqa: E402
+from benchmarks.solver_speed import median_times  # noqa: E402
 from solver.rigging import depth  # noqa: E402
 
 PINS = 4
 
 
 def median_ms(functions, repeats):
-    """Median milliseconds of each function, timed in turns."""
-    times = [[] for _ in functions]
-    for _ in range(repeats):
-        for function, kept in zip(functions, times):
-            start = time.perf_counter()
-            function()
-            kept.append(time.perf_counter() - start)
-    return [1000.0 * float(np.median(t)) for t in times]
+    """Median milliseconds of each function, timed in turns (solver_speed.median_times)."""
+    return [1000.0 * t for t in median_times(functions, repeats)]
 
 
 def main(argv=None):

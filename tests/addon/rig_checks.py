@@ -156,3 +156,18 @@ def snapshot():
         mesh.vertices.foreach_get("co", coordinates)
         state[f"mesh {mesh.name}"] = (coordinates.tobytes(), sorted(a.name for a in mesh.attributes))
     return state
+
+
+def import_picture(folder, name, pixels, **options):
+    """Save ``pixels`` (h, w, 4) float32 as ``<folder>/<name>.png`` and import it as a plane
+    (Import Images as Planes, with its ``options``); returns the plane."""
+    height, width = pixels.shape[:2]
+    image = bpy.data.images.new(name, width, height, alpha=True)
+    image.pixels.foreach_set(np.ascontiguousarray(pixels, dtype=np.float32).ravel())
+    image.filepath_raw = str(folder / f"{name}.png")
+    image.file_format = "PNG"
+    image.save()
+    bpy.data.images.remove(image)
+    result = bpy.ops.image.import_as_mesh_planes(files=[{"name": f"{name}.png"}], directory=str(folder), **options)
+    assert result == {"FINISHED"}
+    return bpy.context.active_object

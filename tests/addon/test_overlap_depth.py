@@ -230,22 +230,14 @@ def test_a_baked_overlap_renders_the_same_with_the_extension_disabled(addon, tmp
 
 def figure_picture(folder):
     """A picture with alpha of a blue torso and a red arm reaching right from its top, imported
-    as a plane lying in XY (``+Z``); returns the object and the picture's (width, height) in
-    Blender units and pixels' bounds of the torso."""
+    as a plane lying in XY (``+Z``); returns the object, a function giving a pixel's place on
+    the plane, and the x of the shoulder (where the arm meets the torso)."""
     w, h = 96, 96
     pixels = np.zeros((h, w, 4), np.float32)
     torso, arm = (slice(4, 92), slice(20, 44)), (slice(64, 76), slice(44, 90))
     pixels[torso] = TORSO
     pixels[arm] = ARM
-    image = bpy.data.images.new("figure", w, h, alpha=True)
-    image.pixels.foreach_set(pixels.ravel())
-    image.filepath_raw = str(folder / "figure.png")
-    image.file_format = "PNG"
-    image.save()
-    bpy.data.images.remove(image)
-    assert bpy.ops.image.import_as_mesh_planes(files=[{"name": "figure.png"}], directory=str(folder),
-                                               align_axis="+Z", shader="SHADELESS") == {"FINISHED"}
-    obj = bpy.context.active_object
+    obj = checks.import_picture(folder, "figure", pixels, align_axis="+Z", shader="SHADELESS")
     corners = checks.mesh_points(obj)
     low, high = corners.min(axis=0)[:2], corners.max(axis=0)[:2]
 

@@ -9,8 +9,15 @@ import rig_checks as checks
 
 
 def curve_points(obj):
+    """Each spline's point arrays of the curve's own data (see :func:`curve_data_points`)."""
+    return curve_data_points(obj.data)
+
+
+def curve_data_points(curve):
+    """A list of arrays: per Bezier spline its control points, left and right handles (k, 3),
+    per other spline its points (k, 4)."""
     parts = []
-    for spline in obj.data.splines:
+    for spline in curve.splines:
         if spline.type == "BEZIER":
             for name in ("co", "handle_left", "handle_right"):
                 flat = np.empty(len(spline.bezier_points) * 3, np.float32)

@@ -16,14 +16,7 @@ def import_picture(folder):
     pixels = np.zeros((H, W, 4), np.float32)
     pixels[..., 0], pixels[..., 1], pixels[..., 2] = xx / W, yy / H, 0.5
     pixels[..., 3] = (((xx - 40) ** 2 + (yy - 22) ** 2) < 15 ** 2) | ((xx > 8) & (xx < 30) & (yy > 16) & (yy < 28))
-    image = bpy.data.images.new("picture", W, H, alpha=True)
-    image.pixels.foreach_set(pixels.ravel())
-    image.filepath_raw = str(folder / "picture.png")
-    image.file_format = "PNG"
-    image.save()
-    bpy.data.images.remove(image)
-    assert bpy.ops.image.import_as_mesh_planes(files=[{"name": "picture.png"}], directory=str(folder)) == {"FINISHED"}
-    return bpy.context.active_object, pixels
+    return checks.import_picture(folder, "picture", pixels), pixels
 
 
 def uv_of_points(mesh):

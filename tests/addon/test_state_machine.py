@@ -55,7 +55,7 @@ import bpy
 import numpy as np
 import pytest
 
-from test_rig_curve import text_curve
+from test_rig_curve import curve_data_points, text_curve
 from test_rig_image_plane import import_picture
 from test_rig_mesh import grid
 
@@ -98,13 +98,20 @@ def evaluated_points(obj, depsgraph):
                 parts.append(_vectors(curves.attributes, name, len(curves.points)))
     pencil = geometry.grease_pencil
     if pencil is not None:
-        for layer in pencil.layers:
-            frame = layer.current_frame()
-            if frame is not None and frame.drawing is not None:
-                attribute = frame.drawing.attributes.get("position")
-                if attribute is not None and len(attribute.data):
-                    parts.append(_vectors(frame.drawing.attributes, "position", len(attribute.data)))
+        parts += _current_drawing_points(pencil)
     return np.concatenate(parts)
+
+
+def _current_drawing_points(pencil):
+    """Points of each layer's drawing at the current frame, (p_k, 3) float32 each."""
+    parts = []
+    for layer in pencil.layers:
+        frame = layer.current_frame()
+        if frame is not None and frame.drawing is not None:
+            attribute = frame.drawing.attributes.get("position")
+            if attribute is not None and len(attribute.data):
+                parts.append(_vectors(frame.drawing.attributes, "position", len(attribute.data)))
+    return parts
 
 
 def data_points(obj_type, data):
@@ -112,18 +119,7 @@ def data_points(obj_type, data):
     if obj_type == "MESH":
         return _vectors(data.attributes, "position", len(data.vertices))
     if obj_type == "CURVE":
-        parts = [np.empty((0, 3), np.float32)]
-        for spline in data.splines:
-            if spline.type == "BEZIER":
-                for name in ("co", "handle_left", "handle_right"):
-                    flat = np.empty(len(spline.bezier_points) * 3, np.float32)
-                    spline.bezier_points.foreach_get(name, flat)
-                    parts.append(flat.reshape(-1, 3))
-            else:
-                flat = np.empty(len(spline.points) * 4, np.float32)
-                spline.points.foreach_get("co", flat)
-                parts.append(flat.reshape(-1, 4)[:, :3])
-        return np.concatenate(parts)
+        return np.concatenate([np.empty((0, 3), np.float32)] + [p[:, :3] for p in curve_data_points(data)])
     parts = [np.empty((0, 3), np.float32)]  # grease pencil: every drawing of every keyframe
     for layer in data.layers:
         for frame in sorted(layer.frames, key=lambda f: f.frame_number):
@@ -153,14 +149,7 @@ def shown_data_points(obj):
                     spline.points.foreach_get("co", flat)
                     parts.append(flat.reshape(-1, 4)[:, :3])
         return np.concatenate(parts)
-    parts = [np.empty((0, 3), np.float32)]
-    for layer in data.layers:
-        frame = layer.current_frame()
-        if frame is not None and frame.drawing is not None:
-            attribute = frame.drawing.attributes.get("position")
-            if attribute is not None and len(attribute.data):
-                parts.append(_vectors(frame.drawing.attributes, "position", len(attribute.data)))
-    return np.concatenate(parts)
+    return np.concatenate([np.empty((0, 3), np.float32)] + _current_drawing_points(data))
 
 
 def size_of(points):
