@@ -20,8 +20,8 @@ _busy = False
 
 @contextmanager
 def paused():
-    """Leave rigs alone while the caller poses them itself (a bake steps through frames and
-    solves each once, with the Render budget; the frame handler would solve it again)."""
+    """Leave rigs alone while the caller poses them itself: the handlers' own writes call them
+    back, and a bake steps through frames solving each once, with the Render budget."""
     global _busy
     was, _busy = _busy, True
     try:
@@ -42,11 +42,9 @@ def _report(message):
 
 
 def _pose(objects, depsgraph):
-    global _busy
     if not objects:
         return
-    _busy = True
-    try:
+    with paused():  # writing the cages makes Blender call us back
         for obj in objects:
             if rig_format.is_baked(obj):
                 continue  # its bake plays (see bake.py)
@@ -54,8 +52,6 @@ def _pose(objects, depsgraph):
             if message:
                 _report(message)
         depsgraph.update()  # so what is evaluated now shows the new pose, not the previous one
-    finally:
-        _busy = False
     if not rig.final_quality() and rig.unsettled(bpy.context.scene):
         if bpy.app.timers.is_registered(refine):
             bpy.app.timers.unregister(refine)  # still moving: wait for the next pause
@@ -68,20 +64,16 @@ REFINE_AFTER = 0.3
 
 def refine():
     """Solve the current scene's unsettled rigs again with the Render budget (a timer)."""
-    global _busy
     scene = bpy.context.scene
     objects = [o for o in rig.unsettled(scene) if not rig_format.is_baked(o)]
     if not objects:
         return None
-    _busy = True
-    try:
+    with paused():
         for obj in objects:
             message = rig.pose_safely(obj, final=True)
             if message:
                 _report(message)
         bpy.context.view_layer.update()
-    finally:
-        _busy = False
     return None  # once
 
 

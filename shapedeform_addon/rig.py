@@ -3,8 +3,9 @@
 
 :class:`Rig` holds the solver objects of one owner, rebuilt lazily from what the .blend keeps
 (:mod:`.rig_format`). Its owner is this module's ``_cache``, keyed by ``Object.session_uid``; an
-entry is stale when the owner's handles or settings change (:func:`signature`) and is dropped by
-:func:`forget` (after load, undo, or an edit of the handle list). Posing writes only the cage, a
+entry is stale when the owner's handles or settings change (:func:`signature`, or
+:func:`invalidate`: rebuilt keeping its coarse copies) and is dropped by :func:`forget` (after
+load, undo or redo). Posing writes only the cage, a
 few hundred points; the object's Shape Deform modifier maps its own points through it.
 """
 
