@@ -153,6 +153,9 @@ class Energy:
     curve_kind_scale : (3,) float64 ndarray
         A further factor on the Laplacian, to-after and to-before rows (the density
         normalisation; ones without it).
+    density_normalised : bool
+        Whether the density normalisation changed any weight (False without it and at the
+        reference spacing).
     """
 
     def __init__(self, graph, weights=None, stiffness=None, reference_spacing=None):
@@ -174,6 +177,7 @@ class Energy:
         lengths, self.length_edges = self._length_rows(graph)
         scale = {key: np.sqrt(value) for key, value in self.weights.items()}
         density = self._density(graph, reference_spacing)
+        self.density_normalised = any(value != 1.0 for value in density.values())
         scale["mvc"] *= density["mvc"]
         scale["edge"] *= density["edge"]
         self.curve_kind_scale = np.array([density["laplacian"], density["curve_edge"], density["curve_edge"]])
