@@ -13,6 +13,17 @@ weight multiplies the rows, so the weight multiplies the squared term):
 * ``edge``: edge lengths, equations (4)-(5), for the edges not on the boundary (E_g); the target
   ``l0 * d / |d|`` is the nearest vector of rest length, again an exact minimiser.
 
+The paper's sums are not density-invariant: with point spacing ``h`` an edge row measures
+``h`` times a strain, a mean value row and a curve Laplacian row a second difference, about
+``h^2`` times a curvature. Summed over the ``~1/h^2`` interior rows and ``~1/h`` boundary rows,
+the edge terms approximate an area integral of strain squared whatever ``h``, the curve edge
+rows a line integral times ``h``, the mean value rows an area integral times ``h^2`` and the
+Laplacian rows ``h^2`` to ``h^3`` (measured, see ``DENSITY_EXPONENTS``). At 5,000 points the
+terms that resist bending have all but vanished beside the edge terms. With a
+``reference_spacing`` each kind of row is weighted by ``(reference_spacing / graph.spacing)``
+to its exponent, so a graph denser than the reference minimises the reference's energy
+sampled more finely; at the reference spacing every weight is exactly 1.
+
 Because every target is the exact minimiser of its own residual, ``E(V) = min_b ||A V - b||^2``
 over admissible targets, and its gradient is ``2 A^T (A V - b(V))`` (envelope theorem). That is
 what lets :mod:`solver.deformer` run quasi-Newton steps with an energy that never rises.
@@ -29,10 +40,23 @@ from typing import NamedTuple
 import numpy as np
 from scipy.sparse import coo_matrix, diags, vstack
 
-__all__ = ["DEFAULT_WEIGHTS", "Energy", "LocalFit", "mean_value_weights", "similarity_rows"]
+__all__ = ["DEFAULT_WEIGHTS", "DENSITY_EXPONENTS", "Energy", "LocalFit", "mean_value_weights", "similarity_rows"]
 
 # Read-only: a module-level dict would be state shared by every caller.
 DEFAULT_WEIGHTS = MappingProxyType({"laplacian": 1.0, "mvc": 1.0, "edge": 1.0})
+
+# Powers of (reference spacing / graph spacing) on the squared rows of each kind, so each
+# kind's sum approximates one continuum quantity at any density. Measured by applying smooth
+# bends and waves to graphs of 1, 1/2 and 1/3 of the default spacing (star, glyph g, octopus,
+# a bar): edge rows' sums stayed within 10% (exponent 0), curve edge rows' fell as h^1.0,
+# mean value rows' as h^1.8-1.95; curve Laplacian rows' as h^2.1-2.4, not the h^3 a smooth
+# curve's second differences give, because on polygon outlines their energy sits at the
+# corners (a fixed number of rows whose residual is a first difference, ~h), and on straight
+# runs as h^3. See docs/solver_options.md.
+DENSITY_EXPONENTS = MappingProxyType({"laplacian": 2.0, "curve_edge": 1.0, "mvc": 2.0, "edge": 0.0})
+
+# Spacings within this relative difference of the reference count as the reference.
+_SAME_SPACING = 1e-3
 
 # Angles are kept inside (0, pi) by this margin: tan(alpha / 2) blows up as alpha nears pi.
 _ANGLE_MARGIN = 1e-6
@@ -113,14 +137,28 @@ class Energy:
         A factor (> 0, default 1) on every term of each point: a boundary vertex's curve rows,
         an interior point's mean value row, and an edge's length row by the mean of its two
         points' factors. Above 1 the region bends and stretches less (a starch pin).
+    reference_spacing : float, optional
+        Normalise for density: each kind of row is weighted by
+        ``(reference_spacing / graph.spacing) ** DENSITY_EXPONENTS[kind]`` (module docstring),
+        so the energy is the same functional at any density; equal weights at
+        ``graph.spacing == reference_spacing``. None (default): the paper's sums as they are.
 
     Attributes
     ----------
     matrix : (r, n) scipy.sparse.csr_matrix
         ``A``, weighted.
+    curve_scale : float or (m,) float64 ndarray
+        Each boundary vertex's factor on its three curve rows (the Laplacian weight's root
+        times its stiffness's).
+    curve_kind_scale : (3,) float64 ndarray
+        A further factor on the Laplacian, to-after and to-before rows (the density
+        normalisation; ones without it).
+    density_normalised : bool
+        Whether the density normalisation changed any weight (False without it and at the
+        reference spacing).
     """
 
-    def __init__(self, graph, weights=None, stiffness=None):
+    def __init__(self, graph, weights=None, stiffness=None, reference_spacing=None):
         self.weights = dict(DEFAULT_WEIGHTS)
         for key, value in (weights or {}).items():
             if key not in DEFAULT_WEIGHTS:
@@ -138,6 +176,11 @@ class Energy:
         mvc = self._mean_value_rows(graph)
         lengths, self.length_edges = self._length_rows(graph)
         scale = {key: np.sqrt(value) for key, value in self.weights.items()}
+        density = self._density(graph, reference_spacing)
+        self.density_normalised = any(value != 1.0 for value in density.values())
+        scale["mvc"] *= density["mvc"]
+        scale["edge"] *= density["edge"]
+        self.curve_kind_scale = np.array([density["laplacian"], density["curve_edge"], density["curve_edge"]])
         factor = self._stiffness(graph, stiffness)
         # Per row: a term's weight times its points' stiffness (a scalar when all are 1).
         self.curve_scale = scale["laplacian"] * (np.sqrt(factor[self.curve_points[:, 0]])
@@ -145,7 +188,9 @@ class Energy:
         self.edge_scale = scale["edge"] * (np.sqrt(factor[self.length_edges].mean(axis=1))
                                            if stiffness is not None else 1.0)
         mvc_scale = scale["mvc"] * (np.sqrt(factor[graph.interior]) if stiffness is not None else 1.0)
-        blocks = [diags(np.tile(np.broadcast_to(self.curve_scale, len(self.curve_points)), 3)) @ curve,
+        m = len(self.curve_points)
+        curve_row_scale = (self.curve_kind_scale[:, None] * np.broadcast_to(self.curve_scale, m)).ravel()
+        blocks = [diags(curve_row_scale) @ curve,
                   diags(np.broadcast_to(mvc_scale, mvc.shape[0])) @ mvc,
                   diags(np.broadcast_to(self.edge_scale, lengths.shape[0])) @ lengths]
         self.matrix = vstack([b.tocsr() for b in blocks], format="csr")
@@ -164,6 +209,23 @@ class Energy:
         self._rest_direction = np.ascontiguousarray(
             (rest_edge / np.maximum(self.rest_length, 1e-300)[:, None]).T)
         self.n = n
+
+    @staticmethod
+    def _density(graph, reference_spacing):
+        """Row factors (square roots of the squared rows' weights) of each kind for the density
+        normalisation: exactly 1 without it or at the reference spacing."""
+        if reference_spacing is None:
+            return dict.fromkeys(DENSITY_EXPONENTS, 1.0)
+        reference_spacing = float(reference_spacing)
+        if not np.isfinite(reference_spacing) or reference_spacing <= 0:
+            raise ValueError(f"reference_spacing must be a positive number, got {reference_spacing}")
+        ratio = reference_spacing / graph.spacing
+        # build_graph's default spacing comes from the area of the rings it was given, the
+        # reference from the graph's own loops (near-duplicate vertices merged, rounding): a
+        # graph at the default spacing keeps the paper's rows bit for bit.
+        if abs(ratio - 1.0) <= _SAME_SPACING:
+            return dict.fromkeys(DENSITY_EXPONENTS, 1.0)
+        return {kind: float(ratio ** (0.5 * power)) for kind, power in DENSITY_EXPONENTS.items()}
 
     @staticmethod
     def _stiffness(graph, stiffness):

@@ -169,7 +169,9 @@ class Hessian:
         turned = np.stack([-rest[..., 1], rest[..., 0]], axis=-1)
         self._group_total = np.einsum("gkc,gkc->g", rest, rest)
         scale = energy.curve_scale / np.sqrt(np.where(self._group_total > 0, self._group_total, 1.0))
-        lap, ahead, behind = turned[:, 0], turned[:, 1], turned[:, 2]
+        # u = A^T w: the group's rows of A are its kinds' factors times the unit stencils.
+        kind = energy.curve_kind_scale
+        lap, ahead, behind = kind[0] * turned[:, 0], kind[1] * turned[:, 1], kind[2] * turned[:, 2]
         corners = np.stack([lap - ahead - behind, -0.5 * lap + behind, -0.5 * lap + ahead], axis=1)
         corners *= scale[:, None, None]
         self._group_base_x = np.ascontiguousarray(corners[..., 0])

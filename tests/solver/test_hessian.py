@@ -1,17 +1,19 @@
 """The Newton matrix: the energy's true Hessian wherever its projection is inactive."""
 
 import numpy as np
+import pytest
 
 import solver
 from conftest import glyph_rings
 
 
-def _stretched(prevent_flips):
+def _stretched(prevent_flips, spacing=None, normalise_density=False):
     """A 'B' scaled up by 1.5 plus a little noise: every edge is stretched and every curve
     group's fit is below its rest norm, so no coefficient of the Newton matrix is clamped."""
-    graph = solver.build_graph(glyph_rings("B"))
+    graph = solver.build_graph(glyph_rings("B"), spacing=spacing)
     handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
-    deformer = solver.Deformer(graph, handles, prevent_flips=prevent_flips, newton=True)
+    deformer = solver.Deformer(graph, handles, prevent_flips=prevent_flips, newton=True,
+                               normalise_density=normalise_density)
     rng = np.random.default_rng(7)
     pose = 1.5 * graph.points + 1e-3 * graph.size * rng.normal(size=graph.points.shape)
     fixed_rows = (deformer._fixed_columns @ pose[deformer.unknowns.fixed]).T.ravel()
@@ -19,8 +21,18 @@ def _stretched(prevent_flips):
     return graph, deformer, pose, fixed_rows, rng
 
 
-def test_newton_matrix_matches_finite_differences_of_the_gradient():
-    graph, deformer, pose, fixed_rows, rng = _stretched(prevent_flips=False)
+@pytest.mark.parametrize("normalised", [False, True])
+def test_newton_matrix_matches_finite_differences_of_the_gradient(normalised):
+    """Also with the density normalisation on a graph finer than the default, where a curve
+    group's Laplacian row and edge rows have different weights."""
+    spacing = None
+    if normalised:
+        rings = glyph_rings("B")
+        spacing = 0.6 * solver.graph.default_spacing(solver.shapes.shape_geometry(rings))
+    graph, deformer, pose, fixed_rows, rng = _stretched(False, spacing, normalised)
+    if normalised:
+        kinds = deformer.energy.curve_kind_scale
+        assert kinds[0] > kinds[1] > 1.0
     v = pose[deformer.free].T.ravel()
     rows = deformer.evaluate(v)[2][0]
     upper = deformer._preconditioner.matrix(rows).toarray()
