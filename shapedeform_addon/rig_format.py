@@ -35,7 +35,8 @@ from ..solver.rigging.plane import Plane
 from . import compat, nodes
 from .errors import RigError
 
-GRAPH_KEYS = ("plane", "graph_points", "graph_edges", "graph_loops", "graph_loop_sizes", "graph_triangles")
+GRAPH_KEYS = ("plane", "graph_points", "graph_edges", "graph_loops", "graph_loop_sizes", "graph_triangles",
+              "graph_spacing")
 MODIFIER_NAME = "Shape Deform"
 BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that plays
 # On the owner's settings: the name of the attribute marking the grease-pencil layers its rig
@@ -53,6 +54,7 @@ def store_graph(settings, plane, graph):
     settings["graph_loops"] = np.concatenate(graph.boundary_loops).astype(np.int32)
     settings["graph_loop_sizes"] = np.array([len(loop) for loop in graph.boundary_loops], dtype=np.int32)
     settings["graph_triangles"] = graph.triangles.astype(np.int32).ravel()
+    settings["graph_spacing"] = float(graph.spacing)  # the energy's density normalisation reads it
 
 
 def read_graph(obj):
@@ -65,7 +67,8 @@ def read_graph(obj):
         loops = np.split(np.asarray(settings["graph_loops"], dtype=np.int64),
                          np.cumsum(np.asarray(settings["graph_loop_sizes"]))[:-1])
         graph = solver.Graph(points, np.asarray(settings["graph_edges"]).reshape(-1, 2),
-                             loops, np.asarray(settings["graph_triangles"]).reshape(-1, 3))
+                             loops, np.asarray(settings["graph_triangles"]).reshape(-1, 3),
+                             settings.get("graph_spacing"))  # rigs saved before it: estimated
     except (KeyError, ValueError) as err:
         raise RigError(f"'{obj.name}' has damaged rig data ({err}); unbind and bind it again") from None
     return plane, graph

@@ -97,7 +97,7 @@ class Deformer:
         above 1 a region bends and stretches less. A coarse copy the solve may start from is
         solved without it (it only gives the start).
     normalise_density : bool
-        Weight each kind of energy row by a power of ``default_spacing / graph.spacing``
+        On by default. Weight each kind of energy row by a power of ``default_spacing / graph.spacing``
         (:class:`solver.energy.Energy`'s ``reference_spacing``), so that a graph denser than
         :func:`~solver.graph.build_graph`'s default minimises the default graph's energy
         sampled more finely instead of one whose bending terms fade as ``h^2``. A graph at the
@@ -114,7 +114,7 @@ class Deformer:
 
     def __init__(self, graph, handles, weights=None, preserve_area=False, newton=None,
                  prevent_flips=False, options=None, coarse_copies=None, stiffness=None,
-                 normalise_density=False):
+                 normalise_density=True):
         self.graph = graph
         self.options = Options() if options is None else options
         if not isinstance(self.options, Options):
