@@ -38,10 +38,11 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 5
+VERSION = 6
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
+SCAFFOLD = "sd_unsorted"  # only inside the group: layers that carry materials through the sort
 # The name of a boolean attribute naming what the rig deforms (grease-pencil layers chosen at
 # bind time, on the LAYER domain), given to each modifier (``RIGGED_INPUT``): objects sharing
 # their data each have their own; everything is deformed when it is missing or the name empty.
@@ -131,7 +132,8 @@ def _build(group):
     order = group.interface.new_socket(ORDER_INPUT, in_out="INPUT", socket_type="NodeSocketBool")
     order.description = ("Grease pencil: draw strokes back to front by depth, so the part in front of an "
                          "overlap draws after the parts it covers (rebuilds the layers: their blend modes, "
-                         "lights and masks are not kept, and layers get a drawing on every frame)")
+                         "masks and view-layer filters are not kept, Use Lights is turned off, and layers "
+                         "get a drawing on every frame)")
     order.default_value = False
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     b = _Builder(group)
@@ -238,12 +240,35 @@ def _build(group):
     # triangle). Sorting works on curves only, so the drawings go through curves and back.
     height = b.node("ShaderNodeVectorMath", [position, plane_normal], operation="DOT_PRODUCT").outputs["Value"]
     stroke_height = b.node("GeometryNodeFieldOnDomain", {"Value": height}, domain="CURVE", data_type="FLOAT").outputs[0]
+    # Heights within a millionth of the rest cage's size count as equal, so rounding noise (1e-12
+    # where nothing is lifted) does not reorder strokes: Sort Elements keeps equal ones in order.
+    box = b.node("GeometryNodeBoundBox", {"Geometry": rest_cage})
+    cage_size = b.node("ShaderNodeVectorMath", [box.outputs["Min"], box.outputs["Max"]],
+                       operation="DISTANCE").outputs["Value"]
+    quantum = b.node("ShaderNodeMath", [cage_size, 1e-6], operation="MULTIPLY").outputs[0]
+    steps = b.node("ShaderNodeMath", [stroke_height, quantum], operation="DIVIDE").outputs[0]
+    sort_weight = b.node("ShaderNodeMath", [steps], operation="ROUND").outputs[0]
     parts = b.node("GeometryNodeSeparateComponents", [moved.outputs[0]])
     as_curves = b.node("GeometryNodeGreasePencilToCurves", {"Grease Pencil": parts.outputs["Grease Pencil"],
                                                              "Layers as Instances": True}).outputs[0]
-    in_order = b.node("GeometryNodeSortElements", {"Geometry": as_curves, "Sort Weight": stroke_height},
+    in_order = b.node("GeometryNodeSortElements", {"Geometry": as_curves, "Sort Weight": sort_weight},
                       domain="CURVE").outputs[0]
-    drawings = b.node("GeometryNodeCurvesToGreasePencil", {"Curves": in_order, "Instances as Layers": True}).outputs[0]
+    sorted_drawings = b.node("GeometryNodeCurvesToGreasePencil",
+                             {"Curves": in_order, "Instances as Layers": True}).outputs[0]
+    # Sort Elements drops the curves' material list when it reorders (Blender 4.5-5.2), leaving
+    # the material indices pointing at nothing: the strokes would render in the default
+    # material. Joined with the original's layers (emptied and marked), the drawing gets the
+    # original's material list, which the indices point into; the marked layers then go.
+    emptied = b.node("GeometryNodeDeleteGeometry", {"Geometry": parts.outputs["Grease Pencil"]}, domain="CURVE")
+    marked = b.node("GeometryNodeStoreNamedAttribute", {"Geometry": emptied.outputs[0], "Name": SCAFFOLD,
+                                                        "Value": True}, domain="LAYER", data_type="BOOLEAN")
+    with_materials = b.node("GeometryNodeJoinGeometry")
+    group.links.new(sorted_drawings, with_materials.inputs[0])
+    group.links.new(marked.outputs[0], with_materials.inputs[0])
+    scaffold = b.node("GeometryNodeInputNamedAttribute", {"Name": SCAFFOLD}, data_type="BOOLEAN").outputs["Attribute"]
+    kept = b.node("GeometryNodeDeleteGeometry", {"Geometry": with_materials.outputs[0], "Selection": scaffold},
+                  domain="LAYER")
+    drawings = b.node("GeometryNodeRemoveAttribute", {"Geometry": kept.outputs[0], "Name": SCAFFOLD}).outputs[0]
     joined = b.node("GeometryNodeJoinGeometry")
     for name in ("Mesh", "Curve", "Point Cloud", "Volume", "Instances"):
         group.links.new(parts.outputs[name], joined.inputs[0])

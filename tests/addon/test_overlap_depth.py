@@ -207,6 +207,44 @@ def test_grease_pencil_strokes_draw_back_to_front(addon):
     assert np.any(np.diff(heights) < -1e-6)
 
 
+def test_grease_pencil_stroke_order_keeps_materials_and_the_order_at_rest(addon, tmp_path):
+    """Rendered: with Stroke Order on, a rig at rest draws exactly as with it off, and a posed one
+    keeps its materials (Sort Elements alone dropped them, and every stroke drew in the default
+    material)."""
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    for layer in obj.data.layers:
+        layer.use_lights = False  # Stroke Order turns lights off; compare like with like
+    data = bpy.data.cameras.new("Front")
+    data.type, data.ortho_scale = "ORTHO", 3.2
+    camera = bpy.data.objects.new("Front", data)
+    camera.location, camera.rotation_euler = (0.3, -8.0, 0.0), (np.pi / 2, 0.0, 0.0)
+    bpy.context.scene.collection.objects.link(camera)
+    bpy.context.scene.camera = camera
+    rest = checks.drawing_points(obj.data.layers["Lines"].current_frame().drawing)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 2])]))  # chin
+    checks.add_handle(obj, checks.world(obj, rest[np.argmax(rest[:, 0])]))  # other ear
+    ear = checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 0])]))
+    modifier = addon.shapedeform_addon.rig_format.modifiers_of(obj)[0]
+    key = addon.shapedeform_addon.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
+
+    def picture(name, order):
+        addon.shapedeform_addon.compat.set_modifier_input(modifier, key, order)
+        obj.update_tag()
+        return renders.render(tmp_path / f"{name}.png", size=100)
+
+    def skin_share(pixels):  # the fills' warm colours among the drawn pixels
+        drawn = pixels[..., :3].max(axis=2) > 0.02
+        return float(np.mean(pixels[drawn][:, 0] > pixels[drawn][:, 2] + 0.1))
+
+    np.testing.assert_allclose(picture("rest_on", True), picture("rest_off", False), atol=1e-3)
+    ear.location.x += 0.55  # over the eye
+    bpy.context.view_layer.update()
+    off, on = skin_share(picture("posed_off", False)), skin_share(picture("posed_on", True))
+    assert off > 0.5 and abs(on - off) < 0.05, (off, on)
+
+
 def test_a_baked_overlap_renders_the_same_with_the_extension_disabled(addon, tmp_path):
     obj, arm = figure()
     swing_arm_across(obj)
