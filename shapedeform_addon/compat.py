@@ -51,6 +51,15 @@ def modifier_input(modifier, identifier):
     return modifier.get(identifier)
 
 
+def modifier_input_property(modifier, identifier):
+    """``(struct, property)`` of a Geometry Nodes modifier's input, for ``layout.prop`` (see
+    :func:`modifier_input`)."""
+    interface = getattr(modifier, "properties", None)
+    if interface is not None:
+        return getattr(interface.inputs, identifier), "value"
+    return modifier, f'["{identifier}"]'
+
+
 def set_modifier_input(modifier, identifier, value):
     """Set a Geometry Nodes modifier's input (see :func:`modifier_input`)."""
     interface = getattr(modifier, "properties", None)

@@ -3,7 +3,8 @@
 
 import bpy
 
-from .rig_format import active_rig, is_baked, is_follower
+from . import compat, nodes
+from .rig_format import active_rig, is_baked, is_follower, modifiers_of
 
 
 KIND_ICONS = {"POSITION": "EMPTY_DATA", "OVERLAP": "SELECT_SUBTRACT", "STARCH": "MOD_SOLIDIFY"}
@@ -64,6 +65,7 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
             col.prop(active.shapedeform, "in_front" if active.shapedeform.pin_kind == "OVERLAP" else "stiffness")
             col.prop(active.shapedeform, "extent")
         layout.prop(settings, "region_size")
+        _draw_modifier_inputs(layout, obj)
         col = layout.column(align=True)
         col.label(text="Energy Weights")
         col.prop(settings, "weight_laplacian")
@@ -84,6 +86,17 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
             col.operator("shapedeform.clear_bake", icon="TRASH")
         else:
             col.operator("shapedeform.bake", icon="REC")
+
+
+def _draw_modifier_inputs(layout, obj):
+    """The deformer modifier's own options that matter for this kind of object."""
+    modifier = next(iter(modifiers_of(obj)), None)
+    if modifier is None or modifier.node_group is None:
+        return
+    ids = nodes.input_identifiers(modifier.node_group)
+    name = nodes.ORDER_INPUT if obj.type == "GREASEPENCIL" else nodes.REFINE_INPUT if obj.type == "MESH" else None
+    if name in ids:
+        layout.prop(*compat.modifier_input_property(modifier, ids[name]), text=name)
 
 
 classes = (SHAPEDEFORM_UL_handles, SHAPEDEFORM_PT_panel)

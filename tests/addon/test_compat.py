@@ -56,6 +56,11 @@ def test_modifier_inputs_are_set_and_read_back_and_reach_the_nodes(addon):
     for name in ("Cage", "Owner"):
         shapedeform.compat.set_modifier_input(modifier, ids[name], cage if name == "Cage" else obj)
     assert shapedeform.compat.modifier_input(modifier, ids["Cage"]) == cage
+    # What the sidebar draws with layout.prop resolves to the same input.
+    struct, prop = shapedeform.compat.modifier_input_property(modifier, ids["Refine"])
+    shapedeform.compat.set_modifier_input(modifier, ids["Refine"], 2)
+    assert struct.path_resolve(prop) == 2
+    shapedeform.compat.set_modifier_input(modifier, ids["Refine"], 0)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     moved = np.array([v.co for v in obj.evaluated_get(depsgraph).data.vertices])
     own = np.array([v.co for v in obj.data.vertices])

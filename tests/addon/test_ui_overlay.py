@@ -108,3 +108,17 @@ def test_pins_show_their_kind_and_values_and_the_overlay_tints_their_reach(addon
     data = overlay.drawing_data(obj)
     assert np.all(data["reach_colors"][:, :3] == 0.0)  # behind: dark
     assert data["reach_colors"][:, 3].max() == np.float32(0.5 * overlay.REACH_OPACITY)
+
+
+def test_panel_shows_the_modifier_option_for_the_kind_of_object(addon):
+    """Grease pencil: Stroke Order; a mesh: Refine (both inputs of the Shape Deform modifier)."""
+    shapedeform = addon.shapedeform_addon
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    monkey = bpy.context.active_object
+    mesh = grid()
+    for obj, name in ((monkey, "Stroke Order"), (mesh, "Refine")):
+        bpy.context.view_layer.objects.active = obj
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+        modifier = shapedeform.rig_format.modifiers_of(obj)[0]
+        identifier = shapedeform.nodes.input_identifiers(modifier.node_group)[name]
+        assert shapedeform.compat.modifier_input_property(modifier, identifier)[1] in drawn(bpy.context)
