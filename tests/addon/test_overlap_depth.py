@@ -207,14 +207,14 @@ def test_grease_pencil_strokes_draw_back_to_front(addon):
     assert np.any(np.diff(heights) < -1e-6)
 
 
-def test_grease_pencil_stroke_order_keeps_materials_and_the_order_at_rest(addon, tmp_path):
-    """Rendered: with Stroke Order on, a rig at rest draws exactly as with it off, and a posed one
-    keeps its materials (Sort Elements alone dropped them, and every stroke drew in the default
-    material) while the ear folded over the eye draws in front of it."""
+def monkey_seen_from_the_front(addon):
+    """The grease-pencil monkey bound, lights off (Stroke Order turns them off; compare like
+    with like), a camera in front, handles on the chin and both ears; returns the object, the
+    left ear's handle and a function switching Stroke Order."""
     bpy.ops.object.grease_pencil_add(type="MONKEY")
     obj = bpy.context.active_object
     for layer in obj.data.layers:
-        layer.use_lights = False  # Stroke Order turns lights off; compare like with like
+        layer.use_lights = False
     data = bpy.data.cameras.new("Front")
     data.type, data.ortho_scale = "ORTHO", 3.2
     camera = bpy.data.objects.new("Front", data)
@@ -229,17 +229,31 @@ def test_grease_pencil_stroke_order_keeps_materials_and_the_order_at_rest(addon,
     modifier = addon.shapedeform_addon.rig_format.modifiers_of(obj)[0]
     key = addon.shapedeform_addon.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
 
-    def picture(name, order):
-        addon.shapedeform_addon.compat.set_modifier_input(modifier, key, order)
+    def stroke_order(on):
+        addon.shapedeform_addon.compat.set_modifier_input(modifier, key, on)
         obj.update_tag()
+    return obj, ear, stroke_order
+
+
+def skin_share(pixels):
+    """The monkey's fills' warm colours among the drawn pixels."""
+    drawn = pixels[..., :3].max(axis=2) > 0.02
+    return float(np.mean(pixels[drawn][:, 0] > pixels[drawn][:, 2] + 0.1))
+
+
+def eye_white(pixels):
+    return int((pixels[..., :3].min(axis=2) > 0.5).sum())
+
+
+def test_grease_pencil_stroke_order_keeps_materials_and_the_order_at_rest(addon, tmp_path):
+    """Rendered: with Stroke Order on, a rig at rest draws exactly as with it off, and a posed one
+    keeps its materials (Sort Elements alone dropped them, and every stroke drew in the default
+    material) while the ear folded over the eye draws in front of it."""
+    obj, ear, stroke_order = monkey_seen_from_the_front(addon)
+
+    def picture(name, order):
+        stroke_order(order)
         return renders.render(tmp_path / f"{name}.png", size=100)
-
-    def skin_share(pixels):  # the fills' warm colours among the drawn pixels
-        drawn = pixels[..., :3].max(axis=2) > 0.02
-        return float(np.mean(pixels[drawn][:, 0] > pixels[drawn][:, 2] + 0.1))
-
-    def eye_white(pixels):
-        return int((pixels[..., :3].min(axis=2) > 0.5).sum())
 
     np.testing.assert_allclose(picture("rest_on", True), picture("rest_off", False), atol=1e-3)
     ear.location.x += 0.55  # over the eye
@@ -249,6 +263,31 @@ def test_grease_pencil_stroke_order_keeps_materials_and_the_order_at_rest(addon,
     # The ear, lifted, now draws over the eye it covers (166 white pixels of the eye showed
     # through it, 54 with Stroke Order, on Blender 4.5).
     assert eye_white(on) < 0.6 * eye_white(off), (eye_white(off), eye_white(on))
+
+
+def test_a_baked_grease_pencil_keeps_its_stroke_order_with_the_extension_disabled(addon, tmp_path):
+    """The bake is the cage's motion; the modifier, saved in the file, still sorts the strokes."""
+    obj, ear, stroke_order = monkey_seen_from_the_front(addon)
+    stroke_order(True)
+    ear.keyframe_insert("location", frame=1)
+    ear.location.x += 0.55  # over the eye
+    ear.keyframe_insert("location", frame=10)
+    assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 10) == [obj]
+    scene = bpy.context.scene
+    scene.frame_set(10)
+    live = renders.render(tmp_path / "live.png", size=100)
+    stroke_order(False)
+    unordered = renders.render(tmp_path / "unordered.png", size=100)
+    stroke_order(True)
+    addon_utils.disable(ADDON_MODULE, default_set=True)
+    try:
+        scene.frame_set(9)
+        scene.frame_set(10)
+        alone = renders.render(tmp_path / "alone.png", size=100)
+        assert np.abs(alone - live).max() < 1e-6  # the same picture
+        assert eye_white(alone) < 0.6 * eye_white(unordered), (eye_white(unordered), eye_white(alone))
+    finally:
+        addon_utils.enable(ADDON_MODULE, default_set=True)
 
 
 def test_a_baked_overlap_renders_the_same_with_the_extension_disabled(addon, tmp_path):
