@@ -90,9 +90,10 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
 
 def _draw_modifier_inputs(layout, obj):
     """The deformer modifier's own options that matter for this kind of object."""
-    modifier = next(iter(modifiers_of(obj)), None)
-    if modifier is None or modifier.node_group is None:
+    modifiers = modifiers_of(obj)  # only those with the extension's group
+    if not modifiers:
         return
+    modifier = modifiers[0]
     ids = nodes.input_identifiers(modifier.node_group)
     name = nodes.ORDER_INPUT if obj.type == "GREASEPENCIL" else nodes.REFINE_INPUT if obj.type == "MESH" else None
     if name in ids:
