@@ -180,20 +180,10 @@ def stroke_heights(obj, layer, normal):
 
 def test_grease_pencil_strokes_draw_back_to_front(addon):
     """The monkey's ear folded over its face: its strokes draw after the face's, in each layer."""
-    bpy.ops.object.grease_pencil_add(type="MONKEY")
-    obj = bpy.context.active_object
-    rest = checks.drawing_points(obj.data.layers["Lines"].current_frame().drawing)
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    left_ear = rest[np.argmin(rest[:, 0])]
-    checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 2])]))  # chin
-    checks.add_handle(obj, checks.world(obj, rest[np.argmax(rest[:, 0])]))  # other ear
-    ear = checks.add_handle(obj, checks.world(obj, left_ear))
+    obj, ear = monkey_seen_from_the_front()
     ear.location.x += 0.55  # over the eye
-    modifier = addon.shapedeform_addon.rig_format.modifiers_of(obj)[0]
-    key = addon.shapedeform_addon.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
-    assert addon.shapedeform_addon.compat.modifier_input(modifier, key) is False  # opt-in
-    addon.shapedeform_addon.compat.set_modifier_input(modifier, key, True)
-    obj.update_tag()
+    assert addon.shapedeform_addon.compat.modifier_input(*stroke_order_input(addon, obj)) is False  # opt-in
+    set_stroke_order(addon, obj, True)
     bpy.context.view_layer.update()
     front = (0.0, -1.0, 0.0)  # the monkey is drawn in XZ, seen from -Y
     for layer in ("Fills", "Lines"):
@@ -201,16 +191,15 @@ def test_grease_pencil_strokes_draw_back_to_front(addon):
         assert np.all(np.diff(heights) >= -1e-9), layer  # back to front
         assert heights[-1] > heights[0] + 1e-3  # the ear was lifted, and drawn last
     # The drawing itself keeps its order; turned off, the modifier keeps it too.
-    addon.shapedeform_addon.compat.set_modifier_input(modifier, key, False)
-    obj.update_tag()
+    set_stroke_order(addon, obj, False)
     heights = stroke_heights(obj, "Lines", front)
     assert np.any(np.diff(heights) < -1e-6)
 
 
-def monkey_seen_from_the_front(addon):
+def monkey_seen_from_the_front():
     """The grease-pencil monkey bound, lights off (Stroke Order turns them off; compare like
-    with like), a camera in front, handles on the chin and both ears; returns the object, the
-    left ear's handle and a function switching Stroke Order."""
+    with like), a camera in front, handles on the chin and both ears; returns the object and
+    the left ear's handle."""
     bpy.ops.object.grease_pencil_add(type="MONKEY")
     obj = bpy.context.active_object
     for layer in obj.data.layers:
@@ -225,14 +214,18 @@ def monkey_seen_from_the_front(addon):
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 2])]))  # chin
     checks.add_handle(obj, checks.world(obj, rest[np.argmax(rest[:, 0])]))  # other ear
-    ear = checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 0])]))
-    modifier = addon.shapedeform_addon.rig_format.modifiers_of(obj)[0]
-    key = addon.shapedeform_addon.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
+    return obj, checks.add_handle(obj, checks.world(obj, rest[np.argmin(rest[:, 0])]))
 
-    def stroke_order(on):
-        addon.shapedeform_addon.compat.set_modifier_input(modifier, key, on)
-        obj.update_tag()
-    return obj, ear, stroke_order
+
+def stroke_order_input(addon, obj):
+    """(modifier, identifier) of the rig's Stroke Order input."""
+    modifier = addon.shapedeform_addon.rig_format.modifiers_of(obj)[0]
+    return modifier, addon.shapedeform_addon.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
+
+
+def set_stroke_order(addon, obj, on):
+    addon.shapedeform_addon.compat.set_modifier_input(*stroke_order_input(addon, obj), on)
+    obj.update_tag()
 
 
 def skin_share(pixels):
@@ -249,10 +242,10 @@ def test_grease_pencil_stroke_order_keeps_materials_and_the_order_at_rest(addon,
     """Rendered: with Stroke Order on, a rig at rest draws exactly as with it off, and a posed one
     keeps its materials (Sort Elements alone dropped them, and every stroke drew in the default
     material) while the ear folded over the eye draws in front of it."""
-    obj, ear, stroke_order = monkey_seen_from_the_front(addon)
+    obj, ear = monkey_seen_from_the_front()
 
     def picture(name, order):
-        stroke_order(order)
+        set_stroke_order(addon, obj, order)
         return renders.render(tmp_path / f"{name}.png", size=100)
 
     np.testing.assert_allclose(picture("rest_on", True), picture("rest_off", False), atol=1e-3)
@@ -267,8 +260,8 @@ def test_grease_pencil_stroke_order_keeps_materials_and_the_order_at_rest(addon,
 
 def test_a_baked_grease_pencil_keeps_its_stroke_order_with_the_extension_disabled(addon, tmp_path):
     """The bake is the cage's motion; the modifier, saved in the file, still sorts the strokes."""
-    obj, ear, stroke_order = monkey_seen_from_the_front(addon)
-    stroke_order(True)
+    obj, ear = monkey_seen_from_the_front()
+    set_stroke_order(addon, obj, True)
     ear.keyframe_insert("location", frame=1)
     ear.location.x += 0.55  # over the eye
     ear.keyframe_insert("location", frame=10)
@@ -276,9 +269,9 @@ def test_a_baked_grease_pencil_keeps_its_stroke_order_with_the_extension_disable
     scene = bpy.context.scene
     scene.frame_set(10)
     live = renders.render(tmp_path / "live.png", size=100)
-    stroke_order(False)
+    set_stroke_order(addon, obj, False)
     unordered = renders.render(tmp_path / "unordered.png", size=100)
-    stroke_order(True)
+    set_stroke_order(addon, obj, True)
     addon_utils.disable(ADDON_MODULE, default_set=True)
     try:
         scene.frame_set(9)
