@@ -26,12 +26,40 @@ gradients are sparse mat-vecs.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from scipy.sparse import coo_matrix
 
 from .triangulate import triangle_cross
 
-__all__ = ["FoldPenalty"]
+__all__ = ["FoldPenalty", "FoldTerms"]
+
+# The Hessian of a triangle's signed area on [x_a, x_b, x_c, y_a, y_b, y_c]: the area is
+# (x^T S y) / 2 with S the skew-symmetric cyclic matrix below, so the Hessian is constant.
+_CYCLIC = np.array([[0.0, 1.0, -1.0], [-1.0, 0.0, 1.0], [1.0, -1.0, 0.0]])
+AREA_HESSIAN = 0.5 * np.block([[np.zeros((3, 3)), _CYCLIC], [_CYCLIC.T, np.zeros((3, 3))]])
+
+
+class FoldTerms(NamedTuple):
+    """The penalty's half Hessian at a pose, per triangle:
+    ``-coefficient u u^T - bend * AREA_HESSIAN`` (both zero where a triangle is not squeezed).
+
+    Attributes
+    ----------
+    coefficient : (t,) float ndarray
+        Minus the penalty's scale where it is active: the Gauss-Newton part, ``s u u^T``,
+        positive semi-definite.
+    u : (t, 6) float ndarray
+        The area's gradient on ``[x_a, x_b, x_c, y_a, y_b, y_c]``.
+    bend : (t,) float ndarray
+        ``s (floor - a)``: the weight of the area's own (indefinite) curvature, which the
+        exact Hessian has and the Gauss-Newton part leaves out.
+    """
+
+    coefficient: np.ndarray
+    u: np.ndarray
+    bend: np.ndarray
 
 
 class FoldPenalty:
@@ -112,25 +140,23 @@ class FoldPenalty:
         return energy, self._free_block_transpose @ by_edge.ravel()
 
     def terms(self, v):
-        """Gauss-Newton terms of the penalty for :class:`~solver.hessian.Hessian`.
+        """The penalty's Hessian terms for :class:`~solver.hessian.Hessian`.
 
         Returns
         -------
-        (coefficient, u) or None
-            None where no triangle is squeezed (the penalty has no curvature there). Otherwise
-            ``coefficient`` (t,) is minus the penalty's scale where it is active, zero elsewhere
-            (the Hessian subtracts ``c u u^T``, and this term adds curvature), and ``u`` (t, 6)
-            is the area's gradient on ``[x_a, x_b, x_c, y_a, y_b, y_c]``.
+        FoldTerms or None
+            None where no triangle is squeezed (the penalty has no curvature there).
         """
         edges, area = self._areas(v)
         active = area < self._floor
         if not active.any():
             return None
         coefficient = np.where(active, -self._scale, 0.0)
+        bend = np.where(active, self._scale * (self._floor - area), 0.0)
         (x1, x2), (y1, y2) = edges
         u = np.empty((len(area), 6))
         u[:, 1], u[:, 4] = 0.5 * y2, -0.5 * x2      # d area / d b = d area / d e1
         u[:, 2], u[:, 5] = -0.5 * y1, 0.5 * x1      # d area / d c = d area / d e2
         u[:, 0] = -(u[:, 1] + u[:, 2])
         u[:, 3] = -(u[:, 4] + u[:, 5])
-        return coefficient, u
+        return FoldTerms(coefficient, u, bend)

@@ -24,7 +24,12 @@ those terms (``filtering``):
   ``CLAMP K`` and ``K``, as the two-grid's descent argument needs (:mod:`solver.two_grid`).
 
 With the fold penalty of :mod:`solver.folds`, each squeezed triangle adds its Gauss-Newton term
-``s g g^T`` (``g`` the gradient of its area): a third family with negative ``c_k``.
+``s g g^T`` (``g`` the gradient of its area): a third family with negative ``c_k``. The exact
+matrix also takes the area's own curvature, weighted by how far the triangle is squeezed
+(:class:`~solver.folds.FoldTerms`); the projected ones leave it out. Without it the "exact"
+matrix was not the Hessian wherever a fold term was active, and Newton converged only
+linearly there: on the random drags 8 of 88 solves to 1e-9 of the size (seed 2006, paper size)
+still moved after 2,000 iterations, against none or one with it.
 
 ``K`` alone is what the paper's iteration (9) inverts: it treats turning an edge as stiff, which
 is why free limbs converge so slowly with it. This matrix knows better, at the price of a
@@ -37,6 +42,8 @@ from __future__ import annotations
 import numpy as np
 import qdldl
 from scipy.sparse import block_diag, coo_matrix, csc_matrix, csr_matrix, triu
+
+from .folds import AREA_HESSIAN
 
 __all__ = ["Hessian", "NewtonMatrix", "PaperMatrix"]
 
@@ -222,11 +229,13 @@ class Hessian:
         values = self._stored.data
         np.subtract(self._base, self._gather @ products, out=values)
         if self._fold_slots is not None and fold_terms is not None:
-            c, u = fold_terms
+            c, u = fold_terms.coefficient, fold_terms.u
             squeezed = np.flatnonzero(c)
             if len(squeezed):
                 u = u[squeezed]
                 folds = (c[squeezed, None] * u)[:, :, None] * u[:, None, :]
+                if filtering == "exact":
+                    folds += fold_terms.bend[squeezed, None, None] * AREA_HESSIAN
                 slots = self._fold_slots[squeezed].ravel()
                 stored = slots >= 0
                 np.subtract.at(values, slots[stored], folds.ravel()[stored])

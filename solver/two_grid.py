@@ -112,21 +112,21 @@ class TwoGrid:
     def _stiffest_folds(self, fold_terms):
         if fold_terms is None or self._triangles is None:
             return None
-        coefficient, u = fold_terms
+        coefficient, u = fold_terms.coefficient, fold_terms.u
         active = np.flatnonzero(coefficient)
         if len(active) > self._max_fold_terms:
             stiffness = -coefficient[active] * np.einsum("tk,tk->t", u[active], u[active])
             coefficient = coefficient.copy()
             weakest = np.argsort(stiffness)[:len(active) - self._max_fold_terms]
             coefficient[active[weakest]] = 0.0
-        return coefficient, u
+        return fold_terms._replace(coefficient=coefficient)
 
     def _update_smoother(self, fold_terms):
         """Prepare ``(K + G G^T)^-1`` for the fold terms kept (Woodbury)."""
         self._fold_solves = self._fold_capacitance = None
         if fold_terms is None:
             return
-        coefficient, u = fold_terms
+        coefficient, u = fold_terms.coefficient, fold_terms.u
         active = np.flatnonzero(coefficient)
         if len(active) == 0:
             return

@@ -516,7 +516,7 @@ def test_fold_penalty_of_a_sliver_is_no_stiffer_than_of_a_fair_triangle():
                           options.sliver_area)
     squeezed = points.copy()
     squeezed[[2, 3], 1] = [-1e-4, -1e-4]  # both triangles turned inside out by a hair
-    coefficient, u = penalty.terms(squeezed.T.ravel())
+    coefficient, u, _ = penalty.terms(squeezed.T.ravel())
     stiffness = -coefficient * np.einsum("tk,tk->t", u, u)  # curvature along the area gradient
     longest = 1.0
     assert stiffness[0] <= options.fold_weight / (options.sliver_area * longest ** 2) * np.dot(u[0], u[0]) * (1 + 1e-12)

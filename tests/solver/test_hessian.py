@@ -46,6 +46,31 @@ def test_newton_matrix_matches_finite_differences_of_the_gradient(normalised):
         assert np.abs((ahead - behind) / (2 * step) - exact).max() <= 1e-6 * np.abs(exact).max()
 
 
+def test_exact_newton_matrix_with_squeezed_triangles_matches_finite_differences():
+    """The exact matrix includes the fold penalty's whole Hessian: its Gauss-Newton part and the
+    area's own curvature weighted by how far each triangle is squeezed."""
+    graph, deformer, pose, _, rng = _stretched(prevent_flips=True)
+    inner = graph.triangles[np.isin(graph.triangles, deformer.free).all(axis=1)][:3]
+    for a, b, c in inner:  # squeezed past the threshold, one nearly inside out
+        pose[c] = pose[a] + 0.02 * (pose[c] - pose[a]) + 0.5 * (pose[b] - pose[a])
+    folds = deformer._folds
+    folds.hold(pose[deformer.unknowns.fixed])
+    v = pose[deformer.free].T.ravel()
+    deformer._fixed_rows = (deformer._fixed_columns @ pose[deformer.unknowns.fixed]).T.ravel()
+    rows = deformer.evaluate(v)[2][0]
+    terms = folds.terms(v)
+    assert np.count_nonzero(terms.bend) >= 2
+    upper = deformer._preconditioner.matrix(rows, terms, filtering="exact").toarray()
+    newton = upper + np.triu(upper, 1).T
+    step = 1e-6 * graph.size
+    for _ in range(4):
+        direction = rng.normal(size=v.shape)
+        ahead = deformer.evaluate(v + step * direction)[1]
+        behind = deformer.evaluate(v - step * direction)[1]
+        exact = newton @ direction
+        assert np.abs((ahead - behind) / (2 * step) - exact).max() <= 1e-6 * np.abs(exact).max()
+
+
 def test_fold_terms_add_the_penalty_gauss_newton_matrix():
     """With a triangle squeezed below the fold threshold, the Newton matrix gains exactly
     ``scale * grad(area) grad(area)^T`` for it (the penalty's Gauss-Newton part, halved)."""
@@ -116,7 +141,7 @@ def test_two_grid_takes_fold_terms_into_its_smoother_without_refactorising():
     coefficient = np.zeros(len(graph.triangles))
     coefficient[inner] = -3.0
     u = np.random.default_rng(5).normal(size=(len(graph.triangles), 6))
-    two_grid.factorize(rows, (coefficient, u))
+    two_grid.factorize(rows, solver.folds.FoldTerms(coefficient, u, np.zeros_like(coefficient)))
     assert two_grid._smoother._factor is factor
     f = len(deformer.free)
     slot = np.searchsorted(deformer.free, graph.triangles[inner])
