@@ -295,18 +295,15 @@ class NewtonMatrix(Hessian):
 
     Near a minimum the exact Hessian is positive definite and Newton converges quadratically.
     Away from a minimum the exact matrix is indefinite and its step may climb.
-    :meth:`factorize` factorises the exact matrix, reads its inertia from the ``L D L^T``
-    pivots (Sylvester's law) and, if any pivot is not positive, factorises the projected one
-    instead, with the same pattern and symbolic analysis.
+    :meth:`factorize` factorises the exact matrix at every iterate, reads its inertia from the
+    ``L D L^T`` pivots (Sylvester's law) and, if any pivot is not positive, factorises the
+    projected one instead, with the same pattern and symbolic analysis.
 
     The projection drops the negative curvature of compressed terms (down to ``CLAMP`` times
     the paper's matrix) rather than flipping it as absolute-eigenvalue filtering does: the
     flipped terms made the matrix about twice as stiff as the energy along the steps (the
     energy fell about twice as much as the model predicted, step after step) and the steps
-    short. On the random-drag benchmark at paper size (88 drags, ``docs/solver_options.md``)
-    the clamped fallback had 74% of solves within 1e-3 after 15 iterations and 89% after 30
-    with the fold penalty (absolute filtering: 70% and 88%), 76% and 92% without (64% and 80%)
-    with seed 2006; 80% and 91% (69%, 90%), 75% and 92% (62%, 83%) with seed 7.
+    short. Measurements in ``docs/solver_options.md``.
 
     Attributes
     ----------
@@ -322,25 +319,17 @@ class NewtonMatrix(Hessian):
     def __init__(self, energy, free, triangles=None):
         super().__init__(energy, free, triangles)
         self.exact = False
-        self._wait = 0   # refreshes to go before the exact matrix is tried again
-        self._patience = 1
-
-    def reset(self):
-        """Forget the last solve: the next factorisation tries the exact matrix first."""
-        self._wait, self._patience = 0, 1
 
     def factorize(self, rows, fold_terms=None, fit=None):
         """Factor at the pose with ``A V = rows`` ((2, r)); arguments as for :meth:`matrix`.
 
-        Far from a minimum the exact matrix stays indefinite for many iterates, and trying it
-        costs a factorisation each time; after each failure the next try waits twice as many
-        refreshes (1, 2, 4, ...), and a success resets the wait.
+        The exact matrix is tried at every iterate, even after it was refused at the last: an
+        indefinite matrix costs one factorisation more, while a positive definite one missed
+        (the matrix turns definite in the last few iterations of a solve) costs iterations.
         """
         if fit is None:
             fit = self.energy.fit(rows)
-        tries = ("exact", self.fallback) if self._wait == 0 else (self.fallback,)
-        self._wait = max(self._wait - 1, 0)
-        for filtering in tries:
+        for filtering in ("exact", self.fallback):
             upper = self.matrix(rows, fold_terms, fit, filtering)
             try:
                 if self._factor is None:
@@ -351,15 +340,10 @@ class NewtonMatrix(Hessian):
                 self._factor = None
                 if filtering == self.fallback:
                     raise
-                self._wait, self._patience = self._patience, 2 * self._patience
                 continue
             self.exact = filtering == "exact"
-            if not self.exact:
+            if not self.exact or bool(np.all(self._factor.factors()[1] > 0.0)):
                 return
-            if bool(np.all(self._factor.factors()[1] > 0.0)):
-                self._patience = 1
-                return
-            self._wait, self._patience = self._patience, 2 * self._patience
 
 
 class PaperMatrix:

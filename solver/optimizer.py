@@ -63,19 +63,14 @@ def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=
     """
     step_limit = tolerance * size
     result = Result(v)
-    matrix.reset()  # a solve depends on its targets alone, not on the last solve's history
     if area is not None:
         _project_start(objective, matrix, area, v)
     energy, gradient, pose = objective.evaluate(v)  # gradient: half the true one
     for _ in range(max_iterations):
         step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area)
         result.refreshes += 1
-        if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit and not matrix.exact:
-            # A projected matrix is stiffer than the energy, so its short step says little of the
-            # distance to the minimum (in a flat valley it may be far): ask the exact one.
-            matrix.reset()
-            step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area)
-            result.refreshes += 1
+        # A projected matrix is stiffer than the energy, so its short step says little of the
+        # distance to the minimum (in a flat valley it may be far): only an exact step stops.
         if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit and matrix.exact:
             result.converged = True
             break
