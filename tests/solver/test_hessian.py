@@ -21,6 +21,33 @@ def _stretched(prevent_flips, spacing=None, normalise_density=False):
     return graph, deformer, pose, fixed_rows, rng
 
 
+def _squeeze(graph, deformer, pose, count):
+    """Squeeze the first ``count`` inner triangles of ``pose`` past the fold threshold (their
+    third corner pulled onto their first edge) and hold the fixed points for ``evaluate``.
+    Returns the free coordinates, the rows ``A V`` and the penalty's terms there."""
+    inner = graph.triangles[np.isin(graph.triangles, deformer.free).all(axis=1)][:count]
+    for a, b, c in inner:
+        pose[c] = pose[a] + 0.02 * (pose[c] - pose[a]) + 0.5 * (pose[b] - pose[a])
+    deformer._folds.hold(pose[deformer.unknowns.fixed])
+    deformer._fixed_rows = (deformer._fixed_columns @ pose[deformer.unknowns.fixed]).T.ravel()
+    v = pose[deformer.free].T.ravel()
+    return v, deformer.evaluate(v)[2][0], deformer._folds.terms(v)
+
+
+def _assert_matches_finite_differences(deformer, v, upper, rng):
+    """The symmetric matrix with upper triangle ``upper`` times random directions equals central
+    differences of the deformer's (half) gradient: it is the Hessian, halved as the gradient is."""
+    upper = upper.toarray()
+    newton = upper + np.triu(upper, 1).T
+    step = 1e-6 * deformer.graph.size
+    for _ in range(4):
+        direction = rng.normal(size=v.shape)
+        ahead = deformer.evaluate(v + step * direction)[1]
+        behind = deformer.evaluate(v - step * direction)[1]
+        exact = newton @ direction
+        assert np.abs((ahead - behind) / (2 * step) - exact).max() <= 1e-6 * np.abs(exact).max()
+
+
 @pytest.mark.parametrize("normalised", [False, True])
 def test_newton_matrix_matches_finite_differences_of_the_gradient(normalised):
     """Also with the density normalisation on a graph finer than the default, where a curve
@@ -35,40 +62,17 @@ def test_newton_matrix_matches_finite_differences_of_the_gradient(normalised):
         assert kinds[0] > kinds[1] > 1.0
     v = pose[deformer.free].T.ravel()
     rows = deformer.evaluate(v)[2][0]
-    upper = deformer._preconditioner.matrix(rows).toarray()
-    newton = upper + np.triu(upper, 1).T  # the halved Hessian, as the gradient is halved
-    step = 1e-6 * graph.size
-    for _ in range(4):
-        direction = rng.normal(size=v.shape)
-        ahead = deformer.evaluate(v + step * direction)[1]
-        behind = deformer.evaluate(v - step * direction)[1]
-        exact = newton @ direction
-        assert np.abs((ahead - behind) / (2 * step) - exact).max() <= 1e-6 * np.abs(exact).max()
+    _assert_matches_finite_differences(deformer, v, deformer._preconditioner.matrix(rows), rng)
 
 
 def test_exact_newton_matrix_with_squeezed_triangles_matches_finite_differences():
     """The exact matrix includes the fold penalty's whole Hessian: its Gauss-Newton part and the
     area's own curvature weighted by how far each triangle is squeezed."""
     graph, deformer, pose, _, rng = _stretched(prevent_flips=True)
-    inner = graph.triangles[np.isin(graph.triangles, deformer.free).all(axis=1)][:3]
-    for a, b, c in inner:  # squeezed past the threshold, one nearly inside out
-        pose[c] = pose[a] + 0.02 * (pose[c] - pose[a]) + 0.5 * (pose[b] - pose[a])
-    folds = deformer._folds
-    folds.hold(pose[deformer.unknowns.fixed])
-    v = pose[deformer.free].T.ravel()
-    deformer._fixed_rows = (deformer._fixed_columns @ pose[deformer.unknowns.fixed]).T.ravel()
-    rows = deformer.evaluate(v)[2][0]
-    terms = folds.terms(v)
+    v, rows, terms = _squeeze(graph, deformer, pose, 3)
     assert np.count_nonzero(terms.bend) >= 2
-    upper = deformer._preconditioner.matrix(rows, terms, filtering="exact").toarray()
-    newton = upper + np.triu(upper, 1).T
-    step = 1e-6 * graph.size
-    for _ in range(4):
-        direction = rng.normal(size=v.shape)
-        ahead = deformer.evaluate(v + step * direction)[1]
-        behind = deformer.evaluate(v - step * direction)[1]
-        exact = newton @ direction
-        assert np.abs((ahead - behind) / (2 * step) - exact).max() <= 1e-6 * np.abs(exact).max()
+    exact = deformer._preconditioner.matrix(rows, terms, filtering="exact")
+    _assert_matches_finite_differences(deformer, v, exact, rng)
 
 
 def test_fold_terms_add_the_penalty_gauss_newton_matrix():
@@ -77,21 +81,14 @@ def test_fold_terms_add_the_penalty_gauss_newton_matrix():
     FOLD_WEIGHT = solver.Options().fold_weight
 
     graph, deformer, pose, _, _ = _stretched(prevent_flips=True)
-    inner = graph.triangles[np.isin(graph.triangles, deformer.free).all(axis=1)][0]
-    a, b, c = inner
-    pose[c] = pose[a] + 0.02 * (pose[c] - pose[a]) + 0.5 * (pose[b] - pose[a])
+    v, rows, terms = _squeeze(graph, deformer, pose, 1)
     folds = deformer._folds
-    folds.hold(pose[deformer.unknowns.fixed])
-    v = pose[deformer.free].T.ravel()
-    deformer._fixed_rows = (deformer._fixed_columns @ pose[deformer.unknowns.fixed]).T.ravel()
-    rows = deformer.evaluate(v)[2][0]
-    terms = folds.terms(v)
-    assert terms is not None and np.count_nonzero(terms[0]) >= 1
+    assert terms is not None and np.count_nonzero(terms.coefficient) >= 1
     added = deformer._preconditioner.matrix(rows, terms).toarray() - deformer._preconditioner.matrix(rows, None).toarray()
     expected = np.zeros_like(added)
     step = 1e-7 * graph.size
     rest_area = 0.5 * solver.triangulate.triangle_cross(graph.points, graph.triangles)
-    for t in np.flatnonzero(terms[0]):
+    for t in np.flatnonzero(terms.coefficient):
         gradient = np.zeros_like(v)
         for k in range(len(v)):  # the triangle's area gradient, by central differences
             if not np.isin(k % len(deformer.free), np.searchsorted(deformer.free, graph.triangles[t])):
