@@ -71,3 +71,25 @@ def test_a_pose_depends_on_its_targets_alone(solved):
         again = deformer.solve(case.targets)
         assert np.array_equal(again.positions, pose.positions), case.name
         assert again.iterations == pose.iterations, case.name
+
+
+def test_near_a_minimum_newton_converges_quadratically(solved):
+    """Started 1e-5 of the size away from its minimum, a solve gets within 1e-9 of the size in
+    two or three iterations: the matrix it steps with there is the energy's whole Hessian, the
+    fold penalty's terms included (with only their Gauss-Newton part, 6-59 iterations on half
+    of these drags)."""
+    penalty, results = solved
+    rng = np.random.default_rng(5)
+    squeezed = 0
+    for case, deformer, _, minimum in results:
+        if not minimum.converged:
+            continue
+        if penalty:
+            v = minimum.positions[deformer.free].T.ravel()
+            deformer._folds.hold(minimum.positions[deformer.unknowns.fixed])
+            squeezed += deformer._folds.terms(v) is not None
+        start = minimum.positions.copy()
+        start[deformer.free] += 1e-5 * case.graph.size * rng.uniform(-1.0, 1.0, (len(deformer.free), 2))
+        again = deformer.solve(case.targets, max_iterations=4, tolerance=1e-9, initial=start)
+        assert again.converged, case.name
+    assert not penalty or squeezed >= 2  # the claim is about poses that lean on the penalty
