@@ -26,10 +26,8 @@ those terms (``filtering``):
 With the fold penalty of :mod:`solver.folds`, each squeezed triangle adds its Gauss-Newton term
 ``s g g^T`` (``g`` the gradient of its area): a third family with negative ``c_k``. The exact
 matrix also takes the area's own curvature, weighted by how far the triangle is squeezed
-(:class:`~solver.folds.FoldTerms`); the projected ones leave it out. Without it the "exact"
-matrix was not the Hessian wherever a fold term was active, and Newton converged only
-linearly there: on the random drags 8 of 88 solves to 1e-9 of the size (seed 2006, paper size)
-still moved after 2,000 iterations, against none or one with it.
+(:class:`~solver.folds.FoldTerms`), without which Newton converges only linearly to a minimum
+that leans on the penalty; the projected ones leave it out.
 
 ``K`` alone is what the paper's iteration (9) inverts: it treats turning an edge as stiff, which
 is why free limbs converge so slowly with it. This matrix knows better, at the price of a
