@@ -2,11 +2,18 @@
 
 The paper's energy (equation 6) has minima with folded triangles in large bends, where a dragged
 region meets the rest: nothing in it measures orientation. With ``Deformer(prevent_flips=True)``
-each triangle of the graph whose signed area ``a`` falls below ``threshold`` times its rest
-area ``a0`` adds ``weight * a0 * (threshold - a / a0)^2`` (``Options.fold_threshold`` and
-``Options.fold_weight``, 0.1 and 100 by default). Above the threshold the term
-is zero, so a pose that squeezes no triangle that far is a minimum of the paper's energy
-unchanged; in big bends it holds the folds open at a small price in energy.
+each triangle of the graph whose area ratio ``r = a / a0`` (signed area over rest area) falls
+below ``t`` adds ``w * a0 * (t - r)^3 / (3 t^2)`` (``t = Options.fold_threshold``,
+``w = Options.fold_weight``, 0.4 and 20 by default). Above the threshold the term is zero, so
+a pose that squeezes no triangle that far is a minimum of the paper's energy unchanged; in big
+bends it holds the folds open at a small price in energy.
+
+``w`` is the push at zero area: a triangle's term falls by ``w a0`` per unit of ``r`` as it
+reopens from ``r = 0``, and more steeply as it turns further inside out. The cube makes the
+penalty's curvature grow from zero at the threshold, so the Newton model has no jump there: a
+quadratic penalty (``t = 0.1``, with ``w`` giving the same push) put a stiff wall at its
+threshold, and solves that pressed on it crawled along it for tens of iterations. The
+measurements behind both constants are in ``docs/solver_options.md``.
 
 The weight per triangle scales with its area, as the paper's rows scale with their edges, so
 the balance between the two does not depend on the graph's density. Its stiffness, though, goes
@@ -48,13 +55,13 @@ class FoldTerms(NamedTuple):
     Attributes
     ----------
     coefficient : (t,) float ndarray
-        Minus the penalty's scale where it is active: the Gauss-Newton part, ``s u u^T``,
-        positive semi-definite.
+        Minus half the term's second derivative by the area: the Gauss-Newton part,
+        ``-coefficient u u^T``, positive semi-definite.
     u : (t, 6) float ndarray
         The area's gradient on ``[x_a, x_b, x_c, y_a, y_b, y_c]``.
     bend : (t,) float ndarray
-        ``s (floor - a)``: the weight of the area's own (indefinite) curvature, which the
-        exact Hessian has and the Gauss-Newton part leaves out.
+        Minus half the term's derivative by the area: the weight of the area's own
+        (indefinite) curvature, which the exact Hessian has and the Gauss-Newton part leaves out.
     """
 
     coefficient: np.ndarray
@@ -87,13 +94,13 @@ class FoldPenalty:
         self._free_block, self._free_block_transpose, self._fixed_columns = unknowns.split(edges)
         self._fixed_edges = np.zeros(4 * count)
         rest_area = 0.5 * triangle_cross(graph.points, triangles)
-        # weight * a0 * (threshold - a / a0)^2 = scale * (floor - a)^2, with a0 in the
-        # scale bounded below for slivers.
+        # w a0 (t - a / a0)^3 / (3 t^2) = scale (floor - a)^3 with floor = t a0 and
+        # scale = w / (3 t^2 a0^2), a0 in the scale bounded below for slivers.
         corners = graph.points[triangles]
         sides = corners - np.roll(corners, 1, axis=1)
         longest = np.einsum("tkc,tkc->tk", sides, sides).max(axis=1, initial=0.0)
         stiffness_area = np.maximum(rest_area, sliver_area * longest)
-        self._scale = weight / np.where(rest_area > 0, stiffness_area, np.inf)
+        self._scale = weight / (3.0 * threshold ** 2 * np.where(rest_area > 0, stiffness_area, np.inf) ** 2)
         self._floor = threshold * rest_area
         self.triangles = triangles
 
@@ -127,8 +134,8 @@ class FoldPenalty:
             return 0.0, None
         # Only the few squeezed triangles have a term: work on those, scatter into the edges.
         gap = gap[squeezed]
-        slope = -self._scale[squeezed] * gap  # half of d energy / d area
-        energy = -float(slope @ gap)
+        slope = -1.5 * self._scale[squeezed] * gap * gap  # half of d energy / d area
+        energy = -float(slope @ gap) / 1.5
         half = 0.5 * slope
         (x1, x2), (y1, y2) = edges[..., squeezed]
         # The area's derivatives by the two edges, coordinate-major as the edges are.
@@ -151,8 +158,9 @@ class FoldPenalty:
         active = area < self._floor
         if not active.any():
             return None
-        coefficient = np.where(active, -self._scale, 0.0)
-        bend = np.where(active, self._scale * (self._floor - area), 0.0)
+        gap = np.where(active, self._floor - area, 0.0)
+        coefficient = -3.0 * self._scale * gap
+        bend = 1.5 * self._scale * gap * gap
         (x1, x2), (y1, y2) = edges
         u = np.empty((len(area), 6))
         u[:, 1], u[:, 4] = 0.5 * y2, -0.5 * x2      # d area / d b = d area / d e1

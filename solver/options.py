@@ -70,9 +70,10 @@ class Options:
         in, each one back-substitution per refresh.
     fold_threshold : float
         With ``prevent_flips``: triangles squeezed below this fraction of their rest area are
-        pushed back open.
+        pushed back open (:mod:`solver.folds`).
     fold_weight : float
-        The fold penalty's weight relative to the paper's terms.
+        The fold penalty's push at zero area, relative to the paper's terms: how fast a
+        triangle's term falls, per unit of area ratio and of rest area, as it reopens.
     sliver_area : float
         Area per squared longest edge below which a triangle counts as a sliver, whose fold
         stiffness is bounded.
@@ -98,8 +99,8 @@ class Options:
     coarse_ratio: float = 2.0
     two_grid_max_points: int = 10000
     max_fold_terms: int = 32
-    fold_threshold: float = 0.1
-    fold_weight: float = 100.0
+    fold_threshold: float = 0.4
+    fold_weight: float = 20.0
     sliver_area: float = 0.05
 
     def __post_init__(self):

@@ -76,9 +76,11 @@ def test_exact_newton_matrix_with_squeezed_triangles_matches_finite_differences(
 
 
 def test_fold_terms_add_the_penalty_gauss_newton_matrix():
-    """With a triangle squeezed below the fold threshold, the Newton matrix gains exactly
-    ``scale * grad(area) grad(area)^T`` for it (the penalty's Gauss-Newton part, halved)."""
-    FOLD_WEIGHT = solver.Options().fold_weight
+    """With a triangle squeezed below the fold threshold, the projected Newton matrix gains
+    exactly ``E''(a) / 2 grad(a) grad(a)^T`` for it (the penalty's Gauss-Newton part, halved),
+    with ``E(a) = w a0 (t - a / a0)^3 / (3 t^2)`` as solver.folds defines it."""
+    options = solver.Options()
+    weight, threshold = options.fold_weight, options.fold_threshold
 
     graph, deformer, pose, _, _ = _stretched(prevent_flips=True)
     v, rows, terms = _squeeze(graph, deformer, pose, 1)
@@ -88,6 +90,7 @@ def test_fold_terms_add_the_penalty_gauss_newton_matrix():
     expected = np.zeros_like(added)
     step = 1e-7 * graph.size
     rest_area = 0.5 * solver.triangulate.triangle_cross(graph.points, graph.triangles)
+    ratio = folds._areas(v)[1] / rest_area
     for t in np.flatnonzero(terms.coefficient):
         gradient = np.zeros_like(v)
         for k in range(len(v)):  # the triangle's area gradient, by central differences
@@ -96,7 +99,8 @@ def test_fold_terms_add_the_penalty_gauss_newton_matrix():
             e = np.zeros_like(v)
             e[k] = step
             gradient[k] = (folds._areas(v + e)[1][t] - folds._areas(v - e)[1][t]) / (2 * step)
-        expected += FOLD_WEIGHT / rest_area[t] * np.outer(gradient, gradient)
+        half_curvature = weight * (threshold - ratio[t]) / (threshold ** 2 * rest_area[t])
+        expected += half_curvature * np.outer(gradient, gradient)
     assert np.abs(added - np.triu(expected)).max() <= 1e-6 * np.abs(expected).max()
 
 
