@@ -81,7 +81,7 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
                                 default=False, update=_settings_changed)
     prevent_flips: BoolProperty(
         name="Prevent Folds",
-        description="Push triangles squeezed below a tenth of their area back open, so large bends "
+        description="Push triangles squeezed below 40% of their area back open, so large bends "
                     "do not fold the shape over itself; poses that squeeze none are unchanged",
         default=True, update=_settings_changed)
     weight_laplacian: FloatProperty(name="Boundary Detail", description="Weight of the curve Laplacian term",

@@ -83,9 +83,9 @@ class Deformer:
         copy of the shape; cheapest per iteration, slow to turn free limbs.
     prevent_flips : bool
         The paper's energy admits poses with folded (inverted) triangles in large bends (where a
-        dragged region meets the rest, typically). With this on, triangles squeezed below a
-        tenth of their rest area are pushed back open by a penalty (:mod:`solver.folds`); poses
-        that squeeze none that far are the paper's minima unchanged.
+        dragged region meets the rest, typically). With this on, triangles squeezed below
+        ``options.fold_threshold`` (40%) of their rest area are pushed back open by a penalty
+        (:mod:`solver.folds`); poses that squeeze none that far are the paper's minima unchanged.
     options : solver.Options, optional
         How the solver is built and run (iterations, tolerance, refresh schedule, coarse
         copies, fold penalty constants); the defaults when omitted.
