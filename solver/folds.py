@@ -19,12 +19,10 @@ The weight per triangle scales with its area, as the paper's rows scale with the
 the balance between the two does not depend on the graph's density. Its stiffness, though, goes
 as ``1 / a0``: a near-degenerate triangle (two boundary points a hair apart, common where curve
 segments meet) would be thousands of times stiffer than its neighbours, while its orientation
-means nothing. Such slivers are weighted as if their area were ``Options.sliver_area`` times
-their longest edge squared (0.05: a height under a tenth of the longest edge). On the benchmark character's standard drag (a boundary about six times
-denser than its lattice), steps that barely moved the shape turned such triangles inside out
-hundreds of times over, the line search halved up to 12 times per iteration, and the solve
-stopped at its 30-iteration cap; with the bound (and :func:`solver.build_graph` merging ring
-vertices a hair apart) it converges in 17 iterations with no folded triangle.
+means nothing, and steps that barely move the shape turn it inside out again and again. Such
+slivers are weighted as if their area were ``Options.sliver_area`` times their longest edge
+squared (0.05: a height under a tenth of the longest edge); :func:`solver.build_graph` also
+merges ring vertices a hair apart.
 
 Areas are quadratic in the positions: with a triangle's edge vectors ``e1 = b - a`` and
 ``e2 = c - a`` (rows of a constant matrix, like ``A``'s), ``area = (e1 x e2) / 2``, so values and
