@@ -34,17 +34,11 @@ import solver  # noqa: E402
 from benchmarks import random_drags  # noqa: E402
 from benchmarks.metrics import flipped  # noqa: E402
 
-REFERENCE = {"max_iterations": 2000, "tolerance": 1e-9}
-
-
-def _error(a, b, size):
-    return float(np.linalg.norm(a - b, axis=1).max() / size)
-
 
 def sweep(seed, thresholds, drags=8):
     """Rows (one per threshold) of the measures above, as dicts."""
     cases = random_drags.cases(seed, "paper", drags=drags)
-    plain = [solver.Deformer(case.graph, case.handles).solve(case.targets, **REFERENCE) for case in cases]
+    plain = [random_drags.reference(solver.Deformer(case.graph, case.handles), case.targets) for case in cases]
     unfolded = [flipped(case.graph.points, pose.positions, case.graph.triangles) == 0
                 for case, pose in zip(cases, plain)]
     rows = []
@@ -53,16 +47,16 @@ def sweep(seed, thresholds, drags=8):
         within, folded, moves, times = {15: 0, 30: 0}, 0, [], []
         for case, paper, keep in zip(cases, plain, unfolded):
             deformer = solver.Deformer(case.graph, case.handles, prevent_flips=True, options=options)
-            converged = deformer.solve(case.targets, **REFERENCE).positions
+            converged = random_drags.reference(deformer, case.targets).positions
             for budget in within:
                 start = time.perf_counter()
                 pose = deformer.solve(case.targets, max_iterations=budget).positions
                 if budget == 30:
                     times.append(time.perf_counter() - start)
-                within[budget] += _error(pose, converged, case.graph.size) <= random_drags.WITHIN
+                within[budget] += random_drags.pose_error(pose, converged, case.graph.size) <= random_drags.WITHIN
             folded += flipped(case.graph.points, converged, case.graph.triangles) > 0
             if keep:
-                moves.append(_error(converged, paper.positions, case.graph.size))
+                moves.append(random_drags.pose_error(converged, paper.positions, case.graph.size))
         rows.append({"threshold": threshold, "drags": len(cases), "within 15": within[15],
                      "within 30": within[30], "folded": folded, "moves": np.array(moves),
                      "ms": 1e3 * float(np.median(times))})

@@ -64,7 +64,7 @@ from benchmarks.solver_speed import libigl_arap  # noqa: E402
 from solver.rigging.handles import select_region  # noqa: E402
 
 __all__ = ["SHAPES", "SIZES", "CONFIGS", "Case", "cases", "sized_graph", "random_drag", "place_drag",
-           "default_deformer", "reference", "measure", "run", "summary", "by_shape", "oddities",
+           "default_deformer", "reference", "pose_error", "measure", "run", "summary", "by_shape", "oddities",
            "markdown"]
 
 SHAPES = {
@@ -292,7 +292,9 @@ def reference(deformer, targets, max_iterations=2000, tolerance=REFERENCE_TOLERA
     return deformer.solve(targets, max_iterations=max_iterations, tolerance=tolerance)
 
 
-def _error(positions, converged, size):
+def pose_error(positions, converged, size):
+    """The largest distance of a point of ``positions`` from ``converged`` (both (n, 2)), over
+    ``size``."""
     return float(np.linalg.norm(positions - converged, axis=1).max() / size)
 
 
@@ -356,7 +358,7 @@ def measure(case, make_deformer=default_deformer, prevent_flips=True, repeats=5,
     short = full
     if not (full.converged and full.iterations <= 15):
         short = deformer.solve(targets, max_iterations=15)
-    errors = [_error(s.positions, ref.positions, graph.size) for s in (short, full)]
+    errors = [pose_error(s.positions, ref.positions, graph.size) for s in (short, full)]
     return {
         "case": case.name, "shape": case.shape, "size": case.size, "points": graph.n,
         "error 15": errors[0], "error 30": errors[1],
