@@ -29,9 +29,11 @@ __all__ = ["Method", "ours", "linear_baseline", "plain_iteration", "libigl_arap"
 
 def fine_factor(deformer):
     """The factor one of ``deformer``'s iterations back-substitutes with, over the whole graph:
-    the two-grid preconditioner's fine (paper's) factor, or with ``newton=True`` (and on graphs
-    too small for a coarse copy) the Newton factor."""
-    return getattr(deformer._preconditioner, "_smoother", deformer._preconditioner)
+    the two-grid preconditioner's fine (paper's) factor (of the Krylov-Newton solve's two-grid
+    on large graphs), or with ``newton=True`` (and on graphs too small for a coarse copy) the
+    Newton factor."""
+    matrix = getattr(deformer._preconditioner, "_two_grid", deformer._preconditioner)
+    return getattr(matrix, "_smoother", matrix)
 
 
 @dataclass

@@ -20,6 +20,7 @@ from .energy import Energy
 from .folds import FoldPenalty
 from .graph import default_spacing
 from .hessian import NewtonMatrix
+from .krylov import KrylovNewton
 from .optimizer import minimise, newton
 from .options import Options
 from .preconditioner import choose
@@ -74,10 +75,12 @@ class Deformer:
         ``None`` (default): up to ``options.newton_max_points`` points, Newton's method
         (:func:`solver.optimizer.newton`: the Newton matrix refactorised at every iterate, one
         symbolic analysis per handle set) from the lower-energy of the as-similar-as-possible
-        pose and a solved coarse copy's pose. Above, L-BFGS with the two-grid preconditioner of
-        :mod:`solver.two_grid` (the paper's factor, never refactorised, plus a Newton correction
-        on a coarse copy) from the coarse copy's pose, and above
-        ``options.two_grid_max_points`` with ``A_f^T A_f`` alone.
+        pose and a solved coarse copy's pose. Above, from the coarse copy's pose, Newton's
+        method with its system solved inexactly by conjugate gradients over the two-grid
+        preconditioner of :mod:`solver.two_grid` (:mod:`solver.krylov`: the paper's factor,
+        never refactorised, plus a Newton correction on a coarse copy); with ``preserve_area``,
+        L-BFGS over that preconditioner. Above ``options.two_grid_max_points``, L-BFGS over
+        ``A_f^T A_f`` alone.
         ``True``: Newton's method at any size, from the as-similar-as-possible pose.
         ``False``: the paper's way, L-BFGS on ``A_f^T A_f`` alone from the pose of a coarse
         copy of the shape; cheapest per iteration, slow to turn free limbs.
@@ -153,7 +156,6 @@ class Deformer:
             self._folds = FoldPenalty(graph, unknowns, options.fold_threshold, options.fold_weight,
                                       options.sliver_area)
         triangles = graph.triangles if self._folds is not None else None
-        self._newton = newton is True or (newton is None and graph.n <= options.newton_max_points)
 
         # A graph at the default spacing keeps the paper's energy and its solves their path bit
         # for bit, coarse start included (a coarse copy at 60 interior points would otherwise be
@@ -167,15 +169,26 @@ class Deformer:
                             normalise_density=coarse_normalised)
 
         coarse = None if newton is True else self._coarse_copy(copies)
-        # Where a solve may start: the as-similar-as-possible pose (up to newton_max_points) and
-        # the pose of a solved coarse copy; with both, the one of lower energy.
+        # How a solve steps: Newton's method on a factorised matrix (small graphs, and any
+        # without a coarse copy to precondition with); on large graphs Newton's method with CG
+        # over the two-grid (solver.krylov), or L-BFGS where the area constraint's projections
+        # need a factor, or above two_grid_max_points; L-BFGS on the paper's matrix with
+        # newton=False.
+        factorised = newton is True or (newton is None and (graph.n <= options.newton_max_points or coarse is None))
+        krylov = (newton is None and not factorised and not self.preserve_area
+                  and graph.n <= options.two_grid_max_points)
+        self._newton = factorised or krylov
+        # Where a solve may start: the as-similar-as-possible pose (with a factorised Newton
+        # matrix) and the pose of a solved coarse copy; with both, the one of lower energy.
         self._starts = []
-        if newton is True or graph.n <= options.newton_max_points:
+        if factorised:
             self._starts.append(SimilarityStart(graph, unknowns))
         if coarse is not None:
             self._starts.append(CoarseStart(graph, self.handles, coarse, make_deformer))
-        if self._newton:
+        if factorised:
             self._preconditioner = NewtonMatrix(self.energy, self.free, triangles)
+        elif krylov:
+            self._preconditioner = KrylovNewton(self.energy, self.free, coarse[1].weights[self.free], triangles)
         else:
             self._preconditioner = choose(self.energy, self.free, triangles, newton, options, coarse)
         if self.preserve_area:

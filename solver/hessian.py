@@ -272,13 +272,16 @@ class Hessian:
         else:
             self._factor.update(upper, upper=True)
 
-    def solve(self, rhs):
+    def solve(self, rhs, forcing=0.0):
         """Solve with the last factor.
 
         Parameters
         ----------
         rhs : (2 f,) float ndarray
             Stacked ``[x of free points; y of free points]``.
+        forcing : float
+            Ignored: a factor solves exactly (to rounding). Taken for the interface that
+            :class:`~solver.krylov.KrylovNewton` shares.
 
         Returns
         -------

@@ -1,17 +1,20 @@
 """How the energy is minimised: Newton's method (:func:`newton`), or L-BFGS over a
 preconditioner (:func:`minimise`).
 
-:func:`newton` refactorises :class:`~solver.hessian.NewtonMatrix` at every iterate (exact where
-positive definite, projected elsewhere) and searches along the step for the strong Wolfe
-conditions: the step may grow as well as shrink, since away from a minimum the projected matrix
-overestimates the energy's curvature. Its only knobs are the line search's two constants.
+:func:`newton` refreshes its matrix at every iterate, :class:`~solver.hessian.NewtonMatrix`
+(factorised: exact where positive definite, projected elsewhere) or, for large graphs,
+:class:`~solver.krylov.KrylovNewton` (the exact Hessian, its system solved by preconditioned
+conjugate gradients to a relative residual ``min(1/2, sqrt(|g| / |g_0|))``, Eisenstat and
+Walker's forcing term), and searches along the step for the strong Wolfe conditions: the step
+may grow as well as shrink, since away from a minimum the projected matrix overestimates the
+energy's curvature and a truncated step may fall short. Its only knobs are the line search's
+two constants.
 
-:func:`minimise`, L-BFGS, serves graphs too large to refactorise at every iterate:
+:func:`minimise`, L-BFGS, serves the area constraint on large graphs and the paper's matrix alone:
 The preconditioner (:mod:`solver.preconditioner`) is L-BFGS's initial inverse Hessian; the
 curvature pairs it keeps add what the preconditioner misses. Every accepted step lowers the
-energy (Armijo). The preconditioner is refreshed at the current pose, which clears the pairs,
-on the schedule that :class:`~solver.options.Options` sets: while steps are large early on,
-and every few iterations in a solve still taking large steps late.
+energy (Armijo). A preconditioner that follows the pose is refreshed there, which clears the
+pairs, while steps are large (``Options.refreshes`` and ``Options.refresh_until``).
 
 With the area constraint (:mod:`solver.area`) every step is projected onto the constraint's
 tangent in the preconditioner's metric, the curvature pairs use the Lagrangian's gradient, and
@@ -55,8 +58,8 @@ class Result:
 
 def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=None):
     """Minimise ``objective`` by Newton's method from ``v``; arguments and result as for
-    :func:`minimise`, with ``matrix`` a :class:`~solver.hessian.NewtonMatrix` refreshed at every
-    iterate.
+    :func:`minimise`, with ``matrix`` a :class:`~solver.hessian.NewtonMatrix` or
+    :class:`~solver.krylov.KrylovNewton` refreshed at every iterate.
 
     With ``area`` the step is projected onto the constraint's tangent in the matrix's metric and
     each trial point moved back onto the constraint, so the line search only backtracks (Armijo).
@@ -66,11 +69,15 @@ def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=
     if area is not None:
         _project_start(objective, matrix, area, v)
     energy, gradient, pose = objective.evaluate(v)  # gradient: half the true one
+    first_norm = float(np.linalg.norm(gradient))
     for _ in range(max_iterations):
-        step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area)
+        norm = float(np.linalg.norm(gradient))
+        forcing = min(0.5, np.sqrt(norm / first_norm)) if first_norm > 0.0 else 0.0
+        step, jacobian, direction = _newton_step(objective, matrix, v, pose, gradient, area, forcing)
         result.refreshes += 1
-        # A projected matrix is stiffer than the energy, so its short step says little of the
-        # distance to the minimum (in a flat valley it may be far): only an exact step stops.
+        # A projected matrix is stiffer than the energy, and a truncated step stopped at negative
+        # curvature, so their short steps say little of the distance to the minimum (in a flat
+        # valley it may be far): only an exact step stops.
         if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit and matrix.exact:
             result.converged = True
             break
@@ -101,13 +108,13 @@ def _project_start(objective, matrix, area, v):
                          f"targets (the nearest was {area.area(v) / area.rest - 1.0:.2g} off it)")
 
 
-def _newton_step(objective, matrix, v, pose, gradient, area):
+def _newton_step(objective, matrix, v, pose, gradient, area, forcing):
     """Refactor ``matrix`` at ``v`` and return the Newton step (projected onto the area
     constraint's tangent with ``area``), with the constraint's jacobian and ``H^-1 J`` (None
-    without)."""
+    without). ``forcing`` is the relative residual an iterative ``matrix`` may leave."""
     objective.refresh(v, pose)
     if area is None:
-        return -matrix.solve(gradient), None, None
+        return -matrix.solve(gradient, forcing), None, None
     jacobian = area.jacobian(v)
     direction = matrix.solve(jacobian)
     step = -matrix.solve(gradient - multiplier(gradient, jacobian, direction) * jacobian)
@@ -145,8 +152,7 @@ def minimise(objective, preconditioner, v, options, size, max_iterations, tolera
         With ``area``: no pose with the rest area found near the start.
     """
     step_limit = tolerance * size
-    limit = 0 if not preconditioner.follows_pose else (
-        options.refreshes if area is None else options.refreshes_with_area)
+    limit = options.refreshes if preconditioner.follows_pose else 0
     result = Result(v)
     direction = jacobian = None
     if area is not None:
@@ -157,8 +163,6 @@ def minimise(objective, preconditioner, v, options, size, max_iterations, tolera
     if area is None:
         objective.refresh(v, pose)
     result.refreshes = 1 if limit else 0
-    last_refresh = 0
-    fresh = False
     history = deque(maxlen=options.history)
     for _ in range(max_iterations):
         search_gradient = gradient
@@ -178,7 +182,7 @@ def minimise(objective, preconditioner, v, options, size, max_iterations, tolera
         # Converged when the proposed step moves no point more than the tolerance: the pose is
         # then that close to the minimum the model sees. (A step the line search shortened
         # would say nothing of the kind; checking before the search also saves an evaluation.)
-        if tolerance > 0.0 and not fresh and float(np.abs(step).max()) <= step_limit:
+        if tolerance > 0.0 and float(np.abs(step).max()) <= step_limit:
             result.converged = True
             break
         moved = _line_search(objective, options, v, energy, step, slope, area, direction)
@@ -193,23 +197,15 @@ def minimise(objective, preconditioner, v, options, size, max_iterations, tolera
         s = new_v - v
         largest = float(np.abs(s).max())
         result.energies.append(new_energy)
-        early = result.refreshes < limit and largest > options.refresh_until * size
-        late = (limit > 0 and area is None and result.refreshes < options.late_refreshes
-                and result.iterations >= options.late_refresh_from
-                and result.iterations - last_refresh >= options.late_refresh_every
-                and largest > options.late_until * size)
-        # The first step after a late refresh is the bare preconditioner's, short in a flat
-        # valley however far the minimum: it says nothing of convergence.
-        fresh = late and not early
-        if early or late:
+        refresh = result.refreshes < limit and largest > options.refresh_until * size
+        if refresh:
             objective.refresh(new_v, pose)
             result.refreshes += 1
-            last_refresh = result.iterations
             history.clear()
         if area is not None:
             new_jacobian = area.jacobian(new_v)
             new_direction = preconditioner.solve(new_jacobian)
-        if not (early or late):
+        if not refresh:
             y = new_gradient - gradient
             if area is not None:
                 y -= multiplier(new_gradient, new_jacobian, new_direction) * (new_jacobian - jacobian)

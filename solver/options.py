@@ -35,23 +35,18 @@ class Options:
         Newton and quasi-Newton steps).
     newton_max_points : int
         Graphs up to this many points are solved by Newton's method, refactorising the Newton
-        matrix at every iterate; larger ones by L-BFGS over a preconditioner that is
+        matrix at every iterate; larger ones by Newton's method with its system solved by
+        conjugate gradients over the two-grid preconditioner (:mod:`solver.krylov`), or, with
+        the area constraint or ``newton=False``, by L-BFGS over a preconditioner that is
         refactorised rarely or never.
     max_halvings : int
         Step halvings the line search tries before it calls the pose a minimum to rounding.
     refreshes : int
-        Refreshes of the pose-dependent matrix (the two-grid's coarse Newton matrix, or the
-        whole Newton matrix with ``newton=True``) at most per solve, made while steps exceed
+        L-BFGS only (the area constraint on graphs above ``newton_max_points``): refreshes of
+        the two-grid's coarse Newton matrix at most per solve, made while steps exceed
         ``refresh_until`` times the size; L-BFGS reuses the last one afterwards.
     refresh_until : float
         See ``refreshes``.
-    refreshes_with_area : int
-        ``refreshes`` for solves with the area constraint, whose curvature the Newton matrix
-        leaves out.
-    late_refresh_from, late_refresh_every, late_refreshes, late_until : int, int, int, float
-        A solve still running at iteration ``late_refresh_from`` with steps above
-        ``late_until`` times the size refreshes every ``late_refresh_every`` iterations, up to
-        ``late_refreshes`` refreshes in all (not with the area constraint).
     coarse_start_points : int
         Above this many graph points a solve starts from the pose of a coarse copy of the
         shape instead of the as-similar-as-possible pose.
@@ -67,7 +62,8 @@ class Options:
         hundred points is then too coarse to help).
     max_fold_terms : int
         Fold-penalty terms (the stiffest squeezed triangles) the two-grid's smoother takes
-        in, each one back-substitution per refresh.
+        in under L-BFGS, each one back-substitution per refresh (conjugate gradients take
+        none: their preconditioner need not lie above the matrix).
     fold_threshold : float
         With ``prevent_flips``: triangles squeezed below this fraction of their rest area are
         pushed back open (:mod:`solver.folds`).
@@ -86,13 +82,8 @@ class Options:
     wolfe_curvature: float = 0.9
     newton_max_points: int = 3000
     max_halvings: int = 30
-    refreshes: int = 4
+    refreshes: int = 12
     refresh_until: float = 1e-2
-    refreshes_with_area: int = 12
-    late_refresh_from: int = 10
-    late_refresh_every: int = 3
-    late_refreshes: int = 12
-    late_until: float = 1e-3
     coarse_start_points: int = 3000
     coarse_interior: int = 60
     coarse_detail: float = 0.005

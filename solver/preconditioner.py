@@ -1,14 +1,19 @@
-"""The matrices a solve preconditions with, behind one protocol, and the choice among them.
+"""The matrices a solve steps with, and the choice of L-BFGS's.
 
-Every preconditioner stands for the energy's Hessian on the stacked free coordinates
-``[x; y]``; L-BFGS (:mod:`solver.optimizer`) uses it as its initial inverse Hessian.
+Every one stands for the energy's Hessian on the stacked free coordinates ``[x; y]``.
+:func:`solver.optimizer.newton` solves with one at every iterate:
 
-- :class:`~solver.hessian.Hessian`: the projected Newton matrix of the whole graph, one
-  numeric refactorisation per refresh (``newton=True``, and graphs too small for a coarser
-  copy).
+- :class:`~solver.hessian.NewtonMatrix`: the Newton matrix of the whole graph, one numeric
+  refactorisation per iterate (graphs up to ``Options.newton_max_points``, ``newton=True``);
+- :class:`~solver.krylov.KrylovNewton`: the exact Hessian, its system solved by conjugate
+  gradients over the two-grid cycle (larger graphs).
+
+L-BFGS (:func:`solver.optimizer.minimise`) uses one as its initial inverse Hessian
+(:class:`Preconditioner`, chosen by :func:`choose`):
+
 - :class:`~solver.two_grid.TwoGrid`: the paper's constant matrix, factorised once, plus a
-  Newton correction on a coarse copy of the shape (the default up to
-  ``Options.two_grid_max_points``).
+  Newton correction on a coarse copy of the shape (large graphs with the area constraint, up
+  to ``Options.two_grid_max_points``);
 - :class:`~solver.hessian.PaperMatrix`: the paper's constant matrix alone (``newton=False``,
   and larger graphs).
 """
@@ -17,7 +22,7 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from .hessian import Hessian, PaperMatrix
+from .hessian import PaperMatrix
 from .two_grid import TwoGrid
 
 __all__ = ["Preconditioner", "choose"]
@@ -39,7 +44,7 @@ class Preconditioner(Protocol):
 
 
 def choose(energy, free, triangles, newton, options, coarse):
-    """The preconditioner for a deformer.
+    """L-BFGS's preconditioner for a deformer.
 
     Parameters
     ----------
@@ -51,16 +56,12 @@ def choose(energy, free, triangles, newton, options, coarse):
         As :class:`solver.Deformer` takes it.
     options : solver.Options
     coarse : tuple or None
-        ``(coarse graph, binding of the fine points to it)`` for a two-grid, or None when the
-        solve has no coarse copy (``newton`` is set, or the shape has no copy
-        ``options.coarse_ratio`` times smaller).
+        ``(coarse graph, binding of the fine points to it)`` for a two-grid, or None.
 
     Returns
     -------
     Preconditioner
     """
-    if newton or (newton is None and coarse is None):
-        return Hessian(energy, free, triangles)
-    if newton is None and energy.n <= options.two_grid_max_points:
+    if newton is None and coarse is not None and energy.n <= options.two_grid_max_points:
         return TwoGrid(energy, free, coarse[1].weights[free], triangles, options.max_fold_terms)
     return PaperMatrix(energy, free)

@@ -164,6 +164,14 @@ class TwoGrid:
         x += self._smooth(rhs - self._full @ x)
         return x
 
+    def symmetric_solve(self, rhs):
+        """The symmetric cycle: :meth:`solve`, then a second coarse correction on what is left.
+        A symmetric positive definite map (the smoother is symmetric and above the matrix), as
+        conjugate gradients need of a preconditioner (:mod:`solver.krylov`)."""
+        x = self.solve(rhs)
+        x += self._coarse_correction(rhs - self._full @ x)
+        return x
+
 
 def _galerkin_map(fine, up):
     """The linear map from the fine matrix's values to the coarse upper triangle's.

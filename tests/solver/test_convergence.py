@@ -17,16 +17,23 @@ from benchmarks import random_drags
 SEED = 31
 
 
-@pytest.fixture(scope="module", params=[True, False], ids=["fold penalty", "plain"])
+# At about 5,000 points (Newton steps solved by CG over the two-grid) a few shapes, to keep the
+# suite quick: thin limbs, holes, islands and a traced outline.
+LARGE_SHAPES = ["octopus", "glyph &", "islands", "horse (traced)"]
+
+
+@pytest.fixture(scope="module", params=[("paper", True), ("paper", False), ("5k", True)],
+                ids=["fold penalty", "plain", "5k fold penalty"])
 def solved(request):
     """Each shape's first drag: its deformer, a default solve and the solve's converged pose."""
+    size, penalty = request.param
     results = []
-    for case in random_drags.cases(SEED, "paper", drags=1):
-        deformer = solver.Deformer(case.graph, case.handles, prevent_flips=request.param)
+    for case in random_drags.cases(SEED, size, LARGE_SHAPES if size == "5k" else None, drags=1):
+        deformer = solver.Deformer(case.graph, case.handles, prevent_flips=penalty)
         pose = deformer.solve(case.targets)
         minimum = deformer.solve(case.targets, max_iterations=2000, tolerance=1e-9)
         results.append((case, deformer, pose, minimum))
-    return request.param, results
+    return penalty, results
 
 
 def test_handles_are_exact_and_energy_never_rises(solved):
@@ -54,6 +61,9 @@ def test_the_fold_penalty_leaves_converged_poses_unfolded(solved):
     penalty, results = solved
     if not penalty:
         pytest.skip("without the penalty the energy's own minima fold")
+    if results[0][0].size == "5k":
+        pytest.skip("open: at 5,000 points some minima of the penalised energy still fold a few "
+                    "triangles (the islands' drag here: 4; counts in docs/random_drags.md)")
     for case, _, pose, minimum in results:
         rest = solver.triangulate.triangle_cross(case.graph.points, case.graph.triangles)
         poses = [minimum.positions] + ([pose.positions] if pose.converged else [])
@@ -80,6 +90,9 @@ def test_near_a_minimum_newton_converges_quadratically(solved):
     these 11 drags). 1e-8, not tighter: below it rounding in the gradient moves the exact step
     of a loosely held shape (the islands, the horse) by more than the tolerance."""
     penalty, results = solved
+    if results[0][0].size == "5k":
+        pytest.skip("CG's forcing term is relative to the solve's first gradient: a solve started "
+                    "near its minimum begins with loose steps, superlinear, not quadratic")
     rng = np.random.default_rng(5)
     squeezed = 0
     for case, deformer, _, minimum in results:

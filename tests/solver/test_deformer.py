@@ -363,23 +363,39 @@ def test_a_point_in_no_triangle_starts_at_rest_and_stays_finite():
 
 
 def test_large_graph_path_converges_from_a_coarse_start(horse_graph, horse_drag):
-    """Above Options.newton_max_points the solve starts from a coarse copy's pose and iterates
-    L-BFGS over the two-grid preconditioner: the fine constant factor is never refactorised, only
-    the small coarse one; exercised here on the horse by lowering the thresholds."""
+    """Above Options.newton_max_points the solve starts from a coarse copy's pose and takes
+    Newton steps solved by CG over the two-grid preconditioner: the fine constant factor is
+    never refactorised, only the small coarse one; exercised here on the horse by lowering the
+    thresholds."""
     handles, targets, _ = horse_drag
     newton = solver.Deformer(horse_graph, handles, newton=True).solve(
         targets, tolerance=1e-8, max_iterations=200)
     options = solver.Options(coarse_start_points=10, newton_max_points=10)
     deformer = solver.Deformer(horse_graph, handles, options=options)
-    fine_factor = deformer._preconditioner._smoother._factor
+    assert isinstance(deformer._preconditioner, solver.krylov.KrylovNewton)
+    fine_factor = deformer._preconditioner._two_grid._smoother._factor
     for t in (0.5, 1.0):
         rest = horse_graph.points[handles]
         pose = deformer.solve(rest + (targets - rest) * t)
-        assert deformer._preconditioner._smoother._factor is fine_factor
+        assert pose.converged
+        assert deformer._preconditioner._two_grid._smoother._factor is fine_factor
         assert np.array_equal(pose.positions[handles], rest + (targets - rest) * t)
         assert np.all(np.diff(pose.energies) <= 0.0)
-    assert 1 <= pose.factorizations <= solver.Options().late_refreshes
     assert np.abs(pose.positions - newton.positions).max() <= 1e-3 * horse_graph.size
+
+
+def test_large_graphs_with_the_area_constraint_keep_l_bfgs(horse_graph, horse_drag):
+    """The area constraint's projections need a factor: above Options.newton_max_points it is
+    solved by L-BFGS over the two-grid, whose coarse matrix is refreshed a bounded number of
+    times."""
+    handles, targets, _ = horse_drag
+    options = solver.Options(coarse_start_points=10, newton_max_points=10)
+    deformer = solver.Deformer(horse_graph, handles, preserve_area=True, options=options)
+    assert isinstance(deformer._preconditioner, solver.two_grid.TwoGrid)
+    pose = deformer.solve(targets)
+    assert np.array_equal(pose.positions[handles], targets)
+    assert 1 <= pose.factorizations <= options.refreshes
+    assert abs(horse_graph.area(pose.positions) / horse_graph.area() - 1.0) <= 1e-9
 
 
 def test_very_large_graphs_keep_the_papers_factor(horse_graph, horse_drag):
@@ -410,19 +426,19 @@ def fine_horse(horse_rings):
 
 def test_large_graph_is_converged_within_15_iterations(fine_horse):
     """The paper's constant matrix alone ends this drag about 4e-3 of the size short of the
-    minimum; with the coarse Newton correction the default solve is within 1e-3 in at most 15
-    iterations, and the fine factor is never refactorised."""
+    minimum; with Newton steps over the two-grid the default solve is within 1e-3 in at most
+    15 iterations, and the fine factor is never refactorised."""
     graph, handles, targets = fine_horse
     deformer = solver.Deformer(graph, handles)
     start = deformer.solve(targets, max_iterations=0).positions  # the coarse copy's pose
     converged = solver.Deformer(graph, handles, newton=True).solve(
         targets, max_iterations=300, tolerance=1e-9, initial=start)
     assert converged.converged
-    fine_factor = deformer._preconditioner._smoother._factor
+    fine_factor = deformer._preconditioner._two_grid._smoother._factor
     pose = deformer.solve(targets, max_iterations=15)
     assert np.abs(pose.positions - converged.positions).max() <= 1e-3 * graph.size
     assert np.all(np.diff(pose.energies) <= 0.0)
-    assert deformer._preconditioner._smoother._factor is fine_factor
+    assert deformer._preconditioner._two_grid._smoother._factor is fine_factor
     paper = solver.Deformer(graph, handles, newton=False).solve(targets, max_iterations=15)
     assert np.abs(paper.positions - converged.positions).max() > 2e-3 * graph.size
 

@@ -111,7 +111,7 @@ def test_two_grid_cycle_gives_descent_directions_and_its_coarse_matrix_is_galerk
     handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
     # The two-grid serves graphs above Options.newton_max_points: lowered here to reach it.
     deformer = solver.Deformer(graph, handles, options=solver.Options(newton_max_points=0))
-    two_grid = deformer._preconditioner
+    two_grid = deformer._preconditioner._two_grid
     pose = graph.points @ np.array([[0.8, -0.6], [0.6, 0.8]]).T * 1.2  # turned and stretched
     rows = np.ascontiguousarray((deformer.energy.matrix @ pose).T)
     two_grid.factorize(rows)
@@ -127,6 +127,10 @@ def test_two_grid_cycle_gives_descent_directions_and_its_coarse_matrix_is_galerk
     gradients[:10] = np.linalg.eigh(whole)[1][:, :10].T  # the softest directions too
     for g in gradients:
         assert float(g @ two_grid.solve(g)) > 0.0
+    # The symmetric cycle, CG's preconditioner, is a symmetric positive definite map.
+    symmetric = np.column_stack([two_grid.symmetric_solve(e) for e in np.eye(whole.shape[0])])
+    assert np.abs(symmetric - symmetric.T).max() <= 1e-9 * np.abs(symmetric).max()
+    assert np.linalg.eigvalsh(0.5 * (symmetric + symmetric.T)).min() > 0.0
 
 
 def test_two_grid_takes_fold_terms_into_its_smoother_without_refactorising():
@@ -134,7 +138,10 @@ def test_two_grid_takes_fold_terms_into_its_smoother_without_refactorising():
     (Woodbury, on the kept factor of K) and into the coarse matrix; directions stay descent."""
     graph = solver.build_graph(glyph_rings("B"))
     handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
-    deformer = solver.Deformer(graph, handles, prevent_flips=True, options=solver.Options(newton_max_points=0))
+    # L-BFGS's two-grid, which large graphs keep with the area constraint (newton_max_points
+    # lowered to reach it).
+    deformer = solver.Deformer(graph, handles, prevent_flips=True, preserve_area=True,
+                               options=solver.Options(newton_max_points=0))
     two_grid = deformer._preconditioner
     factor = two_grid._smoother._factor
     rows = np.ascontiguousarray((deformer.energy.matrix @ graph.points).T)
@@ -156,3 +163,43 @@ def test_two_grid_takes_fold_terms_into_its_smoother_without_refactorising():
     assert np.allclose(two_grid._smooth(r), np.linalg.solve(smoother, r), rtol=1e-8, atol=1e-12)
     for v in np.random.default_rng(6).normal(size=(20, 2 * f)):
         assert float(v @ two_grid.solve(v)) > 0.0
+
+
+def test_krylov_newton_solves_the_exact_system_or_returns_a_descent_direction():
+    """CG over the two-grid: at a pose whose exact Hessian is positive definite, with a tiny
+    forcing term, the step is the exact Newton step; far from a minimum (negative curvature) it
+    is still a descent direction, flagged not exact; and the fine factor is never refactorised."""
+    graph = solver.build_graph(glyph_rings("B"))
+    handles = np.flatnonzero(graph.points[:, 1] < graph.points[:, 1].min() + 0.5)
+    targets = graph.points[handles] @ np.array([[0.0, -1.0], [1.0, 0.0]]).T  # a quarter turn
+    options = solver.Options(newton_max_points=0)  # graphs above it take Krylov-Newton steps
+    deformer = solver.Deformer(graph, handles, prevent_flips=True, options=options)
+    krylov = deformer._preconditioner
+    assert isinstance(krylov, solver.krylov.KrylovNewton)
+    factor = krylov._two_grid._smoother._factor
+    minimum = deformer.solve(targets, tolerance=1e-9, max_iterations=200)
+    assert minimum.converged
+
+    def free_coordinates(positions):
+        """Hold the fixed points of ``positions`` for evaluate(), as solve() does; the free ones."""
+        fixed = positions[deformer.unknowns.fixed]
+        deformer._folds.hold(fixed)
+        deformer._fixed_rows = (deformer._fixed_columns @ fixed).T.ravel()
+        return positions[deformer.free].T.ravel()
+
+    v = free_coordinates(minimum.positions) + 1e-4 * graph.size * np.random.default_rng(2).normal(
+        size=2 * len(deformer.free))
+    _, gradient, pose = deformer.evaluate(v)
+    deformer.refresh(v, pose)
+    exact = krylov._matrix.toarray()
+    assert np.linalg.eigvalsh(exact).min() > 0.0
+    step = krylov.solve(gradient, forcing=1e-12)
+    assert krylov.exact
+    assert np.allclose(step, np.linalg.solve(exact, gradient), rtol=1e-6, atol=1e-10 * np.abs(step).max())
+
+    start = free_coordinates(deformer.solve(targets, max_iterations=0).positions)
+    _, gradient, pose = deformer.evaluate(start)
+    deformer.refresh(start, pose)
+    for forcing in (0.5, 1e-3):
+        assert float(gradient @ krylov.solve(gradient, forcing)) > 0.0
+    assert krylov._two_grid._smoother._factor is factor
