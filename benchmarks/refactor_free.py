@@ -5,8 +5,9 @@ Run: .venv/bin/python benchmarks/refactor_free.py [--output docs/refactor_free.m
 
 The paper factors ``A_f^T A_f`` once and only back-substitutes while handles move. Our default up
 to 3,000 points is Newton's method, which refactorises the Newton matrix at every iterate
-(``solver/optimizer.py``); above that, L-BFGS keeps the paper's factor and adds a Newton correction
-on a coarse copy of the shape (``solver/two_grid.py``). This script measures both beside the other
+(``solver/optimizer.py``); above that, Newton steps are solved by conjugate gradients over a
+two-grid preconditioner that keeps the paper's factor and adds a Newton correction on a coarse
+copy of the shape (``solver/krylov.py``, ``solver/two_grid.py``). This script measures both beside the other
 ways to converge on one constant factor, on the named benchmark drags; every method but
 ``newton=True`` (the as-similar-as-possible pose) starts where the default does, all with the same
 energy, stopping rule (no point moves more than 1e-4 of the size) and 30-iteration budget (the
@@ -221,7 +222,7 @@ def run(function, problem, uses_factor, repeats=3):
 METHODS = [
     ("ours: Newton from the better start (refactors at every iterate)", ours, False),
     ("Newton from the as-similar-as-possible start", whole_graph_newton, False),
-    ("L-BFGS on the paper's factor + coarse Newton (two-grid, above 3,000 points)", two_grid, False),
+    ("Newton-CG over the paper's factor + coarse Newton (two-grid, above 3,000 points)", two_grid, False),
     ("L-BFGS on the constant factor (Liu 2017)", paper_matrix_lbfgs, False),
     ("Anderson local/global (Peng 2018)", anderson, True),
     ("Newton-CG, constant factor as preconditioner", newton_cg, True),
