@@ -153,8 +153,11 @@ class Deformer:
                 f"with these weights {int((weight == 0).sum()) // 2} points are in no energy term and "
                 "nothing decides where they go; give 'mvc' or 'edge' a positive weight")
         if self.prevent_flips:
-            self._folds = FoldPenalty(graph, unknowns, options.fold_threshold, options.fold_weight,
-                                      options.sliver_area)
+            # A fold is one triangle's event, whatever the density: each triangle is held open
+            # as firmly as one at the reference spacing (the penalty scales with rest area, so
+            # its weight goes up as the spacing's square goes down).
+            weight = options.fold_weight * self.energy.spacing_ratio ** 2
+            self._folds = FoldPenalty(graph, unknowns, options.fold_threshold, weight, options.sliver_area)
         triangles = graph.triangles if self._folds is not None else None
 
         # A graph at the default spacing keeps the paper's energy and its solves their path bit

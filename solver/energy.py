@@ -156,6 +156,9 @@ class Energy:
     density_normalised : bool
         Whether the density normalisation changed any weight (False without it and at the
         reference spacing).
+    spacing_ratio : float
+        ``reference_spacing / graph.spacing``: 1 without the normalisation and at the
+        reference spacing.
     """
 
     def __init__(self, graph, weights=None, stiffness=None, reference_spacing=None):
@@ -176,8 +179,9 @@ class Energy:
         mvc = self._mean_value_rows(graph)
         lengths, self.length_edges = self._length_rows(graph)
         scale = {key: np.sqrt(value) for key, value in self.weights.items()}
-        density = self._density(graph, reference_spacing)
-        self.density_normalised = any(value != 1.0 for value in density.values())
+        self.spacing_ratio = self._spacing_ratio(graph, reference_spacing)
+        density = {kind: float(self.spacing_ratio ** (0.5 * power)) for kind, power in DENSITY_EXPONENTS.items()}
+        self.density_normalised = self.spacing_ratio != 1.0
         scale["mvc"] *= density["mvc"]
         scale["edge"] *= density["edge"]
         self.curve_kind_scale = np.array([density["laplacian"], density["curve_edge"], density["curve_edge"]])
@@ -211,11 +215,11 @@ class Energy:
         self.n = n
 
     @staticmethod
-    def _density(graph, reference_spacing):
-        """Row factors (square roots of the squared rows' weights) of each kind for the density
-        normalisation: exactly 1 without it or at the reference spacing."""
+    def _spacing_ratio(graph, reference_spacing):
+        """``reference_spacing / graph.spacing``, the base of the density normalisation's
+        factors: exactly 1 without it or at the reference spacing."""
         if reference_spacing is None:
-            return dict.fromkeys(DENSITY_EXPONENTS, 1.0)
+            return 1.0
         reference_spacing = float(reference_spacing)
         if not np.isfinite(reference_spacing) or reference_spacing <= 0:
             raise ValueError(f"reference_spacing must be a positive number, got {reference_spacing}")
@@ -223,9 +227,7 @@ class Energy:
         # build_graph's default spacing comes from the area of the rings it was given, the
         # reference from the graph's own loops (near-duplicate vertices merged, rounding): a
         # graph at the default spacing keeps the paper's rows bit for bit.
-        if abs(ratio - 1.0) <= _SAME_SPACING:
-            return dict.fromkeys(DENSITY_EXPONENTS, 1.0)
-        return {kind: float(ratio ** (0.5 * power)) for kind, power in DENSITY_EXPONENTS.items()}
+        return 1.0 if abs(ratio - 1.0) <= _SAME_SPACING else float(ratio)
 
     @staticmethod
     def _stiffness(graph, stiffness):

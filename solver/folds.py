@@ -15,8 +15,11 @@ quadratic penalty (``t = 0.1``, with ``w`` giving the same push) put a stiff wal
 threshold, and solves that pressed on it crawled along it for tens of iterations. The
 measurements behind both constants are in ``docs/solver_options.md``.
 
-The weight per triangle scales with its area, as the paper's rows scale with their edges, so
-the balance between the two does not depend on the graph's density. Its stiffness, though, goes
+The weight per triangle scales with its area, as the paper's rows scale with their edges. A
+fold is a local event, though: on a dense graph the energy's minima fold a few small triangles
+where a coarse one holds, so with the density normalisation the deformer multiplies ``w`` by
+the square of the reference spacing over the graph's, and every triangle is held open as firmly
+as one at the reference spacing (measured in ``docs/solver_options.md``). The stiffness goes
 as ``1 / a0``: a near-degenerate triangle (two boundary points a hair apart, common where curve
 segments meet) would be thousands of times stiffer than its neighbours, while its orientation
 means nothing, and steps that barely move the shape turn it inside out again and again. Such

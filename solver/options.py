@@ -69,7 +69,10 @@ class Options:
         pushed back open (:mod:`solver.folds`).
     fold_weight : float
         The fold penalty's push at zero area, relative to the paper's terms: how fast a
-        triangle's term falls, per unit of area ratio and of rest area, as it reopens.
+        triangle's term falls, per unit of area ratio and of rest area, as it reopens. With the
+        density normalisation a graph denser than the default spacing multiplies it by the
+        square of the spacings' ratio, so each triangle is held open as firmly as one at the
+        default spacing.
     sliver_area : float
         Area per squared longest edge below which a triangle counts as a sliver, whose fold
         stiffness is bounded.

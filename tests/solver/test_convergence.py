@@ -61,9 +61,6 @@ def test_the_fold_penalty_leaves_converged_poses_unfolded(solved):
     penalty, results = solved
     if not penalty:
         pytest.skip("without the penalty the energy's own minima fold")
-    if results[0][0].size == "5k":
-        pytest.skip("open: at 5,000 points some minima of the penalised energy still fold a few "
-                    "triangles (the islands' drag here: 4; counts in docs/random_drags.md)")
     for case, _, pose, minimum in results:
         rest = solver.triangulate.triangle_cross(case.graph.points, case.graph.triangles)
         poses = [minimum.positions] + ([pose.positions] if pose.converged else [])
