@@ -651,3 +651,22 @@ def test_a_rebuilt_deformer_reuses_the_coarse_copy_of_an_equal_graph(horse_graph
     assert copies.get(other, options.coarse_interior, options.coarse_detail) is not copy
     assert np.array_equal(solver.Deformer(again, handles, coarse_copies=copies).solve(targets).positions, first)
     assert np.array_equal(solver.Deformer(again, handles).solve(targets).positions, first)
+
+
+def test_the_fold_penalty_holds_each_triangle_as_firmly_at_any_density():
+    """Squeezed alike, a triangle of a graph at half the default spacing (a quarter of the area)
+    pays about the penalty of a triangle at the default spacing: a fold is one triangle's event,
+    so a dense graph does not let small triangles fold more easily (solver.folds)."""
+    turn = np.linspace(0, 2 * np.pi, 120, endpoint=False)
+    disk = [np.column_stack([np.cos(turn), np.sin(turn)])]
+    reference = solver.graph.default_spacing(solver.build_graph(disk).geometry())
+    per_triangle = []
+    for spacing in (reference, reference / 2):
+        graph = solver.build_graph(disk, spacing=spacing)
+        handles = np.flatnonzero(graph.points[:, 1] < -0.9)
+        deformer = solver.Deformer(graph, handles, prevent_flips=True)
+        squashed = graph.points * [1.0, 0.2]  # every triangle at a fifth of its rest area
+        deformer._folds.hold(squashed[deformer.unknowns.fixed])
+        energy, _ = deformer._folds.evaluate(squashed[deformer.free].T.ravel())
+        per_triangle.append(energy / len(graph.triangles))
+    assert per_triangle[1] == pytest.approx(per_triangle[0], rel=0.3)
