@@ -2,7 +2,8 @@
 """Convergence and speed on seeded random drags: the benchmark of record for the optimiser.
 
 Run: .venv/bin/python benchmarks/random_drags.py [--quick] [--seed N] [--doc PATH] [--verbose]
-(``--sizes paper,5k``, ``--configs default,plain``, ``--shapes NAME,...``, ``--drags N``).
+(``--sizes paper,5k``, ``--configs default,plain``, ``--shapes NAME,...``, ``--drags N``;
+``--profile`` prints where the solves' time goes instead).
 
 Eleven shapes (glyphs with holes, traced bitmaps, thin limbs, three islands, a star), each at
 the paper's size (400-900 graph points) and at about 5,000 points, get ``--drags`` random drags
@@ -394,6 +395,28 @@ def run(seed, sizes=("paper", "5k"), configs=("default", "plain"), shapes=None, 
     return rows
 
 
+def profile(seed, size="paper", prevent_flips=True, shapes=None, drags=8, top=20):
+    """Where the time of the add-on's solves goes: cProfile over one 30-iteration solve of every
+    case (after a warm-up solve each, as :func:`measure` times them), the ``top`` functions by
+    their own time. Returns the report as text."""
+    import cProfile
+    import io
+    import pstats
+    solves = []
+    for case in cases(seed, size, shapes, drags):
+        deformer = default_deformer(case.graph, case.handles, prevent_flips)
+        deformer.solve(case.targets, max_iterations=30)
+        solves.append((deformer, case.targets))
+    profiler = cProfile.Profile()
+    profiler.enable()
+    for deformer, targets in solves:
+        deformer.solve(targets, max_iterations=30)
+    profiler.disable()
+    report = io.StringIO()
+    pstats.Stats(profiler, stream=report).sort_stats("tottime").print_stats(top)
+    return report.getvalue()
+
+
 # --------------------------------------------------------------------------------------------
 # Tables
 
@@ -533,6 +556,8 @@ def main(argv=None):
                         help="defaults of 3 drags per shape and the paper size only")
     parser.add_argument("--verbose", action="store_true", help="also print a per-shape table")
     parser.add_argument("--doc", help="also write the markdown report to this file")
+    parser.add_argument("--profile", action="store_true",
+                        help="instead, profile the 30-iteration solves of the first size and configuration")
     args = parser.parse_args(argv)
     sizes = (args.sizes or ("paper" if args.quick else "paper,5k")).split(",")
     drags = args.drags or (3 if args.quick else 8)
@@ -543,6 +568,9 @@ def main(argv=None):
             if name not in known:
                 parser.error(f"unknown name {name!r}; known: {', '.join(known)}")
 
+    if args.profile:
+        print(profile(args.seed, sizes[0], CONFIGS[configs[0]], shapes, drags))
+        return
     start = time.perf_counter()
     rows = run(args.seed, sizes, configs, shapes, drags, repeats=args.repeats,
                log=lambda message: print(message, file=sys.stderr, flush=True))
