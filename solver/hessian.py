@@ -266,7 +266,11 @@ class Hessian:
     def factorize(self, rows, fold_terms=None, fit=None):
         """Factor the Hessian at the pose with ``A V = rows`` ((2, r)); the symbolic analysis
         is done only the first time. ``fold_terms`` and ``fit`` as for :meth:`matrix`."""
-        upper = self.matrix(rows, fold_terms, fit)
+        self._refactor(self.matrix(rows, fold_terms, fit))
+
+    def _refactor(self, upper):
+        """Factor ``upper``, numeric values only after the first time; qdldl's RuntimeError on
+        a zero pivot."""
         if self._factor is None:
             self._factor = qdldl.Solver(upper, upper=True)
         else:
@@ -292,19 +296,23 @@ class Hessian:
 
 class NewtonMatrix(Hessian):
     """The matrix a Newton iteration steps with: the exact Hessian where it is positive definite,
-    projected (negative term curvatures clamped, ``filtering="clamp"``) where it is not.
+    else as little of its projection as makes it so.
 
     Near a minimum the exact Hessian is positive definite and Newton converges quadratically.
     Away from a minimum the exact matrix is indefinite and its step may climb.
-    :meth:`factorize` factorises the exact matrix at every iterate, reads its inertia from the
-    ``L D L^T`` pivots (Sylvester's law) and, if any pivot is not positive, factorises the
-    projected one instead, with the same pattern and symbolic analysis.
+    :meth:`factorize` factorises the exact matrix at every iterate and reads its inertia from
+    the ``L D L^T`` pivots (Sylvester's law). If any pivot is not positive it takes the matrix
+    halfway to the projected one (``filtering="clamp"``): every compressed term keeps half its
+    negative curvature, the fold penalty half its area curvature. If that is still indefinite,
+    the projected matrix itself. All share one pattern and symbolic analysis.
 
     The projection drops the negative curvature of compressed terms (down to ``CLAMP`` times
     the paper's matrix) rather than flipping it as absolute-eigenvalue filtering does: the
     flipped terms made the matrix about twice as stiff as the energy along the steps (the
     energy fell about twice as much as the model predicted, step after step) and the steps
-    short. Measurements in ``docs/solver_options.md``.
+    short. The projection alone is still stiffer than the energy along the flat valleys of a
+    swinging limb; the halfway matrix, where definite, follows them further. Measurements in
+    ``docs/solver_options.md``.
 
     Attributes
     ----------
@@ -330,21 +338,27 @@ class NewtonMatrix(Hessian):
         """
         if fit is None:
             fit = self.energy.fit(rows)
-        for filtering in ("exact", self.fallback):
-            upper = self.matrix(rows, fold_terms, fit, filtering)
-            try:
-                if self._factor is None:
-                    self._factor = qdldl.Solver(upper, upper=True)
-                else:
-                    self._factor.update(upper, upper=True)
-            except RuntimeError:  # a zero pivot: singular, so not positive definite
-                self._factor = None
-                if filtering == self.fallback:
-                    raise
-                continue
-            self.exact = filtering == "exact"
-            if not self.exact or bool(np.all(self._factor.factors()[1] > 0.0)):
-                return
+        self.exact = self._definite(self.matrix(rows, fold_terms, fit, "exact"))
+        if self.exact:
+            return
+        exact = self._stored.data.copy()
+        projected = self.matrix(rows, fold_terms, fit, self.fallback)
+        projected_values = projected.data.copy()
+        np.add(exact, projected_values, out=projected.data)
+        projected.data *= 0.5
+        if self._definite(projected):
+            return
+        projected.data[:] = projected_values
+        self._refactor(projected)
+
+    def _definite(self, upper):
+        """Factor ``upper``; whether it is positive definite (singular is not)."""
+        try:
+            self._refactor(upper)
+        except RuntimeError:  # a zero pivot
+            self._factor = None
+            return False
+        return bool(np.all(self._factor.factors()[1] > 0.0))
 
 
 class PaperMatrix:
