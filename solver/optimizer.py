@@ -2,7 +2,8 @@
 preconditioner (:func:`minimise`).
 
 :func:`newton` refreshes its matrix at every iterate, :class:`~solver.hessian.NewtonMatrix`
-(factorised: exact where positive definite, projected elsewhere) or, for large graphs,
+(factorised: exact where positive definite, else halfway to its projection or
+projected) or, for large graphs,
 :class:`~solver.krylov.KrylovNewton` (the exact Hessian, its system solved by preconditioned
 conjugate gradients to a relative residual ``min(1/2, sqrt(|g| / |g_0|))``, Eisenstat and
 Walker's forcing term), and searches along the step for the strong Wolfe conditions: the step

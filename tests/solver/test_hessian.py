@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import solver
+from benchmarks import random_drags
 from conftest import glyph_rings
 
 
@@ -203,3 +204,31 @@ def test_krylov_newton_solves_the_exact_system_or_returns_a_descent_direction():
     for forcing in (0.5, 1e-3):
         assert float(gradient @ krylov.solve(gradient, forcing)) > 0.0
     assert krylov._two_grid._smoother._factor is factor
+
+
+def test_newton_steps_with_the_least_projection_that_is_positive_definite():
+    """Along a random drag's solve, each Newton step solves with the exact Hessian where it is
+    positive definite, else with the mean of it and its projection where that is, else with the
+    projection: the three are seen, and the factor solves the one expected."""
+    case = random_drags.cases(6174, "paper", shapes=["glyph &"], drags=3)[2]
+    deformer = solver.Deformer(case.graph, case.handles, prevent_flips=True)
+    newton = deformer._preconditioner
+    seen = set()
+    for iterations in range(7):
+        positions = deformer.solve(case.targets, max_iterations=iterations).positions
+        fixed = positions[deformer.unknowns.fixed]
+        deformer._folds.hold(fixed)
+        deformer._fixed_rows = (deformer._fixed_columns @ fixed).T.ravel()
+        v = positions[deformer.free].T.ravel()
+        _, gradient, (rows, _) = deformer.evaluate(v)
+        terms = deformer._folds.terms(v)
+        exact, projected = (newton.matrix(rows, terms, filtering=kind).toarray() for kind in ("exact", "clamp"))
+        exact, projected = (m + np.triu(m, 1).T for m in (exact, projected))
+        candidates = {"exact": exact, "halfway": 0.5 * (exact + projected), "projected": projected}
+        kind = next(name for name, m in candidates.items() if np.linalg.eigvalsh(m).min() > 0.0)
+        seen.add(kind)
+        deformer.refresh(v)
+        assert newton.exact == (kind == "exact")
+        expected = np.linalg.solve(candidates[kind], gradient)
+        assert np.allclose(newton.solve(gradient), expected, rtol=1e-6, atol=1e-9 * np.abs(expected).max())
+    assert seen == {"exact", "halfway", "projected"}
