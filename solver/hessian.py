@@ -296,7 +296,7 @@ class Hessian:
 
 class NewtonMatrix(Hessian):
     """The matrix a Newton iteration steps with: the exact Hessian where it is positive definite,
-    else as little of its projection as makes it so.
+    else the matrix halfway to its projection where that is, else the projection.
 
     Near a minimum the exact Hessian is positive definite and Newton converges quadratically.
     Away from a minimum the exact matrix is indefinite and its step may climb.
@@ -342,14 +342,13 @@ class NewtonMatrix(Hessian):
         if self.exact:
             return
         exact = self._stored.data.copy()
-        projected = self.matrix(rows, fold_terms, fit, self.fallback)
-        projected_values = projected.data.copy()
-        np.add(exact, projected_values, out=projected.data)
-        projected.data *= 0.5
-        if self._definite(projected):
+        matrix = self.matrix(rows, fold_terms, fit, self.fallback)  # the same matrix, refilled
+        projected = matrix.data.copy()
+        matrix.data[:] = 0.5 * (exact + projected)
+        if self._definite(matrix):
             return
-        projected.data[:] = projected_values
-        self._refactor(projected)
+        matrix.data[:] = projected
+        self._refactor(matrix)
 
     def _definite(self, upper):
         """Factor ``upper``; whether it is positive definite (singular is not)."""
