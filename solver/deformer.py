@@ -20,7 +20,6 @@ from .energy import Energy
 from .folds import FoldPenalty
 from .graph import default_spacing
 from .hessian import NewtonMatrix
-from .krylov import KrylovNewton
 from .optimizer import minimise, newton
 from .options import Options
 from .preconditioner import choose
@@ -156,8 +155,8 @@ class Deformer:
             # A fold is one triangle's event, whatever the density: each triangle is held open
             # as firmly as one at the reference spacing (the penalty scales with rest area, so
             # its weight goes up as the spacing's square goes down).
-            weight = options.fold_weight * self.energy.spacing_ratio ** 2
-            self._folds = FoldPenalty(graph, unknowns, options.fold_threshold, weight, options.sliver_area)
+            fold_weight = options.fold_weight * self.energy.spacing_ratio ** 2
+            self._folds = FoldPenalty(graph, unknowns, options.fold_threshold, fold_weight, options.sliver_area)
         triangles = graph.triangles if self._folds is not None else None
 
         # A graph at the default spacing keeps the paper's energy and its solves their path bit
@@ -172,28 +171,15 @@ class Deformer:
                             normalise_density=coarse_normalised)
 
         coarse = None if newton is True else self._coarse_copy(copies)
-        # How a solve steps: Newton's method on a factorised matrix (small graphs, and any
-        # without a coarse copy to precondition with); on large graphs Newton's method with CG
-        # over the two-grid (solver.krylov), or L-BFGS where the area constraint's projections
-        # need a factor, or above two_grid_max_points; L-BFGS on the paper's matrix with
-        # newton=False.
-        factorised = newton is True or (newton is None and (graph.n <= options.newton_max_points or coarse is None))
-        krylov = (newton is None and not factorised and not self.preserve_area
-                  and graph.n <= options.two_grid_max_points)
-        self._newton = factorised or krylov
+        self._preconditioner, self._newton = choose(self.energy, self.free, triangles, newton, options,
+                                                    coarse, self.preserve_area)
         # Where a solve may start: the as-similar-as-possible pose (with a factorised Newton
         # matrix) and the pose of a solved coarse copy; with both, the one of lower energy.
         self._starts = []
-        if factorised:
+        if isinstance(self._preconditioner, NewtonMatrix):
             self._starts.append(SimilarityStart(graph, unknowns))
         if coarse is not None:
             self._starts.append(CoarseStart(graph, self.handles, coarse, make_deformer))
-        if factorised:
-            self._preconditioner = NewtonMatrix(self.energy, self.free, triangles)
-        elif krylov:
-            self._preconditioner = KrylovNewton(self.energy, self.free, coarse[1].weights[self.free], triangles)
-        else:
-            self._preconditioner = choose(self.energy, self.free, triangles, newton, options, coarse)
         if self.preserve_area:
             self._area = AreaConstraint(graph, self.free, unknowns.fixed)
             if not np.isin(graph.boundary, self.free).any():

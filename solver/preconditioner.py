@@ -1,4 +1,4 @@
-"""The matrices a solve steps with, and the choice of L-BFGS's.
+"""The matrices a solve steps with, and the choice among them (:func:`choose`).
 
 Every one stands for the energy's Hessian on the stacked free coordinates ``[x; y]``.
 :func:`solver.optimizer.newton` solves with one at every iterate:
@@ -22,7 +22,8 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from .hessian import PaperMatrix
+from .hessian import NewtonMatrix, PaperMatrix
+from .krylov import KrylovNewton
 from .two_grid import TwoGrid
 
 __all__ = ["Preconditioner", "choose"]
@@ -43,8 +44,14 @@ class Preconditioner(Protocol):
         """Apply the approximate inverse Hessian to ``rhs`` ((2 f,)); returns (2 f,)."""
 
 
-def choose(energy, free, triangles, newton, options, coarse):
-    """L-BFGS's preconditioner for a deformer.
+def choose(energy, free, triangles, newton, options, coarse, preserve_area=False):
+    """The matrix a deformer's solves step with, and whether they take Newton steps with it.
+
+    Newton's method on a factorised :class:`~solver.hessian.NewtonMatrix` for small graphs
+    (up to ``options.newton_max_points``), any graph without a coarse copy and ``newton=True``;
+    on larger graphs Newton's method with CG over the two-grid (:class:`~solver.krylov.KrylovNewton`),
+    or L-BFGS over the two-grid where the area constraint's projections need a factor; above
+    ``options.two_grid_max_points``, and with ``newton=False``, L-BFGS over the paper's matrix.
 
     Parameters
     ----------
@@ -57,11 +64,20 @@ def choose(energy, free, triangles, newton, options, coarse):
     options : solver.Options
     coarse : tuple or None
         ``(coarse graph, binding of the fine points to it)`` for a two-grid, or None.
+    preserve_area : bool
+        Whether solves hold the area constraint.
 
     Returns
     -------
-    Preconditioner
+    matrix : NewtonMatrix, KrylovNewton or Preconditioner
+    newton_steps : bool
+        True for :func:`solver.optimizer.newton`, False for L-BFGS (:func:`solver.optimizer.minimise`).
     """
-    if newton is None and coarse is not None and energy.n <= options.two_grid_max_points:
-        return TwoGrid(energy, free, coarse[1].weights[free], triangles, options.max_fold_terms)
-    return PaperMatrix(energy, free)
+    if newton is True or (newton is None and (energy.n <= options.newton_max_points or coarse is None)):
+        return NewtonMatrix(energy, free, triangles), True
+    if newton is None and energy.n <= options.two_grid_max_points:
+        prolongation = coarse[1].weights[free]
+        if not preserve_area:
+            return KrylovNewton(energy, free, prolongation, triangles), True
+        return TwoGrid(energy, free, prolongation, triangles, options.max_fold_terms), False
+    return PaperMatrix(energy, free), False
