@@ -35,7 +35,7 @@ def bind(obj):
     prepared.commit(obj)
     rig_format.store_graph(settings, prepared.plane, prepared.graph)
     settings.cage = rig_format.make_cage(obj, prepared.plane, prepared.graph, handles.collection(obj))
-    rig_format.add_modifier(obj, settings.cage, obj)
+    rig_format.add_modifier(obj, settings.cage, obj, prepared.modifier_inputs)
     settings.kind = kind
     settings.is_bound = True
     settings.status = ""

@@ -25,6 +25,11 @@ and each point samples the cage's displacement (posed minus rest) at its own UV,
 same map (barycentric in the plane, heights kept). Only the points it misses (off the outline)
 and Bezier handles take the nearest-triangle search.
 
+Grease pencil's ``Stroke Order`` draws the strokes lying on a folded-over part after the others
+in their layer: a ray from behind through the posed cage finds the lowest layer under each
+point, and a stroke most of whose points lie higher sorts last (stably, so every other stroke
+keeps the drawing's order).
+
 A missing cage (deleted by hand) leaves the geometry as it is. The ``Refine`` input (0 by
 default) subdivides a mesh's faces before mapping: a long thin face spanning a bent stretch
 otherwise keeps straight edges and can flip although the map under it does not fold.
@@ -38,7 +43,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 6
+VERSION = 7
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -130,10 +135,10 @@ def _build(group):
                           "faces (text, n-gon fills) bend instead of folding; 0 keeps the mesh as it is")
     refine.default_value, refine.min_value, refine.max_value = 0, 0, 6
     order = group.interface.new_socket(ORDER_INPUT, in_out="INPUT", socket_type="NodeSocketBool")
-    order.description = ("Grease pencil: draw strokes back to front by depth, so the part in front of an "
-                         "overlap draws after the parts it covers (rebuilds the layers: their blend modes, "
-                         "masks and view-layer filters are not kept, Use Lights is turned off, and layers "
-                         "get a drawing on every frame)")
+    order.description = ("Grease pencil: in each layer, draw the strokes lying on a part the pose folds over "
+                         "another after the others, which keep their order (rebuilds the layers: their blend "
+                         "modes, masks and view-layer filters are not kept, Use Lights is turned off, and layers "
+                         "get a drawing on every frame). Bind turns it on where the drawing uses none of these")
     order.default_value = False
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     b = _Builder(group)
@@ -235,19 +240,36 @@ def _build(group):
     moved = b.node("GeometryNodeSetPosition",
                    {"Geometry": looked_up.outputs[0], "Selection": outside, "Position": mapped(position)})
 
-    # Grease pencil draws strokes in their order within a layer: sort them back to front by
-    # their mean height along the plane's normal (the cage's rest normal, the same for every
-    # triangle). Sorting works on curves only, so the drawings go through curves and back.
-    height = b.node("ShaderNodeVectorMath", [position, plane_normal], operation="DOT_PRODUCT").outputs["Value"]
-    stroke_height = b.node("GeometryNodeFieldOnDomain", {"Value": height}, domain="CURVE", data_type="FLOAT").outputs[0]
-    # Heights within a millionth of the rest cage's size count as equal, so rounding noise (1e-12
-    # where nothing is lifted) does not reorder strokes: Sort Elements keeps equal ones in order.
-    box = b.node("GeometryNodeBoundBox", {"Geometry": rest_cage})
-    cage_size = b.node("ShaderNodeVectorMath", [box.outputs["Min"], box.outputs["Max"]],
+    # Grease pencil draws strokes in their order within a layer. Where the pose folds the shape
+    # over itself, the strokes lying on the folded-over part must draw after the ones under it;
+    # everywhere else the drawing's own order stands (a face's fill under its eyes, say, even
+    # where the face moved further than the eyes). A point lies over a fold when the posed
+    # cage has a lower layer under it: a ray from below finds the lowest layer, and the point
+    # is higher. Strokes with most of their points over a fold sort after the others, each group
+    # keeping its order (Sort Elements is stable): a face's fill that a folded ear covers only
+    # at its edge stays under the eyes drawn on it.
+    cage_box = b.node("GeometryNodeBoundBox", {"Geometry": rest_cage})
+    cage_size = b.node("ShaderNodeVectorMath", [cage_box.outputs["Min"], cage_box.outputs["Max"]],
                        operation="DISTANCE").outputs["Value"]
-    quantum = b.node("ShaderNodeMath", [cage_size, 1e-6], operation="MULTIPLY").outputs[0]
-    steps = b.node("ShaderNodeMath", [stroke_height, quantum], operation="DIVIDE").outputs[0]
-    sort_weight = b.node("ShaderNodeMath", [steps], operation="ROUND").outputs[0]
+    posed_cage = b.node("GeometryNodeSetPosition", {"Geometry": rest_cage, "Position": posed}).outputs[0]
+    height = b.node("ShaderNodeVectorMath", [position, plane_normal], operation="DOT_PRODUCT").outputs["Value"]
+    below = b.node("ShaderNodeVectorMath", {"Vector": plane_normal, "Scale": b.node(
+        "ShaderNodeMath", [cage_size, -2.0], operation="MULTIPLY").outputs[0]}, operation="SCALE").outputs[0]
+    ray = b.node("GeometryNodeRaycast", {"Target Geometry": posed_cage, "Source Position": b.math("ADD", position, below),
+                                         "Ray Direction": plane_normal, "Ray Length": b.node(
+                                             "ShaderNodeMath", [cage_size, 4.0], operation="MULTIPLY").outputs[0]})
+    lowest = b.node("ShaderNodeVectorMath", [ray.outputs["Hit Position"], plane_normal],
+                    operation="DOT_PRODUCT").outputs["Value"]
+    # A ten-thousandth of the cage's size: far above rounding where the point and the layer
+    # under it are the same, below the lift between the layers of any fold whose top moved a
+    # hundredth of the size more than its bottom (solver/rigging/depth.py).
+    margin = b.node("ShaderNodeMath", [cage_size, 1e-4], operation="MULTIPLY").outputs[0]
+    higher = b.node("FunctionNodeCompare", {"A": b.node("ShaderNodeMath", [height, lowest], operation="SUBTRACT").outputs[0],
+                                            "B": margin}, data_type="FLOAT", operation="GREATER_THAN").outputs[0]
+    over_fold = b.node("FunctionNodeBooleanMath", [ray.outputs["Is Hit"], higher], operation="AND").outputs[0]
+    share_over = b.node("GeometryNodeFieldOnDomain", {"Value": over_fold}, domain="CURVE", data_type="FLOAT").outputs[0]
+    sort_weight = b.node("FunctionNodeCompare", {"A": share_over, "B": 0.5}, data_type="FLOAT",
+                         operation="GREATER_THAN").outputs[0]
     parts = b.node("GeometryNodeSeparateComponents", [moved.outputs[0]])
     as_curves = b.node("GeometryNodeGreasePencilToCurves", {"Grease Pencil": parts.outputs["Grease Pencil"],
                                                              "Layers as Instances": True}).outputs[0]

@@ -151,16 +151,18 @@ def rest_of(cage):
     return flat.reshape(-1, 3)
 
 
-def add_modifier(obj, cage, owner):
-    """Give ``obj`` the deformer modifier driven by ``cage`` (at the end of its stack)."""
+def add_modifier(obj, cage, owner, inputs=None):
+    """Give ``obj`` the deformer modifier driven by ``cage`` (at the end of its stack), its
+    other inputs at the node group's defaults but for ``inputs`` ({input name: value})."""
     group = nodes.node_group()
     modifier = obj.modifiers.new(MODIFIER_NAME, "NODES")
     modifier.node_group = group
     modifier.show_in_editmode = True
     ids = nodes.input_identifiers(group)
-    compat.set_modifier_input(modifier, ids[nodes.CAGE_INPUT], cage)
-    compat.set_modifier_input(modifier, ids[nodes.OWNER_INPUT], owner)
-    compat.set_modifier_input(modifier, ids[nodes.RIGGED_INPUT], owner.shapedeform.get(RIGGED_KEY, ""))
+    values = {nodes.CAGE_INPUT: cage, nodes.OWNER_INPUT: owner,
+              nodes.RIGGED_INPUT: owner.shapedeform.get(RIGGED_KEY, ""), **(inputs or {})}
+    for name, value in values.items():
+        compat.set_modifier_input(modifier, ids[name], value)
     return modifier
 
 

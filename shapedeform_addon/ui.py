@@ -5,6 +5,7 @@ import bpy
 
 from . import compat, nodes
 from .rig_format import active_rig, is_baked, is_follower, modifiers_of
+from .sources import grease_pencil
 
 
 KIND_ICONS = {"POSITION": "EMPTY_DATA", "OVERLAP": "SELECT_SUBTRACT", "STARCH": "MOD_SOLIDIFY"}
@@ -96,8 +97,15 @@ def _draw_modifier_inputs(layout, obj):
     modifier = modifiers[0]
     ids = nodes.input_identifiers(modifier.node_group)
     name = nodes.ORDER_INPUT if obj.type == "GREASEPENCIL" else nodes.REFINE_INPUT if obj.type == "MESH" else None
-    if name in ids:
-        layout.prop(*compat.modifier_input_property(modifier, ids[name]), text=name)
+    if name not in ids:
+        return
+    layout.prop(*compat.modifier_input_property(modifier, ids[name]), text=name)
+    if name == nodes.ORDER_INPUT:
+        losses = grease_pencil.stroke_order_losses(obj)
+        if losses:
+            on = compat.modifier_input(modifier, ids[name])
+            layout.label(text=("Drops " if on else "Would drop ") + "; ".join(losses),
+                         icon="ERROR" if on else "INFO")
 
 
 classes = (SHAPEDEFORM_UL_handles, SHAPEDEFORM_PT_panel)

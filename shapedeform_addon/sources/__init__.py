@@ -44,12 +44,16 @@ class Prepared:
         Makes the changes binding needs beyond the rig's own (an image plane's cut-out).
     advice : str
         What the user should know about the bound result (empty when nothing).
+    modifier_inputs : dict
+        Values the deformer modifier's inputs start with, by input name, where this object's
+        differ from the node group's defaults (grease pencil: Stroke Order).
     """
 
     plane: object
     graph: object
     commit: Callable = field(default=lambda obj: None)
     advice: str = ""
+    modifier_inputs: dict = field(default_factory=dict)
 
 
 def module_for(obj):

@@ -20,7 +20,7 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from . import Prepared, RigError
-from ..nodes import RIGGED
+from ..nodes import ORDER_INPUT, RIGGED
 from ..rig_format import RIGGED_KEY
 from .mesh import REST_ATTRIBUTE, read_vectors
 
@@ -66,6 +66,26 @@ def _values(drawing, name, count, dtype, default):
     return values
 
 
+def stroke_order_losses(obj):
+    """What the modifier's Stroke Order would drop from ``obj``'s layers, as phrases for a
+    message (empty when nothing shows).
+
+    Stroke Order passes the drawings through curves and back (Sort Elements does not sort
+    grease-pencil strokes), which makes new layers: opacity, tint, transform, pass index and
+    radius offset are carried over, their lighting, blend modes, masks and view-layer filters
+    are not. Lighting matters only where the object uses lights too (the 2D Animation
+    template's objects do not).
+    """
+    layers = list(obj.data.layers)
+    checks = (
+        ("lights on", [layer for layer in layers if layer.use_lights] if obj.use_grease_pencil_lights else []),
+        ("blend modes of", [layer for layer in layers if layer.blend_mode != "REGULAR"]),
+        ("masks of", [layer for layer in layers if layer.use_masks and len(layer.mask_layers)]),
+        ("view-layer filters of", [layer for layer in layers if layer.viewlayer_render]),
+    )
+    return [f"{what} " + ", ".join(f"'{layer.name}'" for layer in found) for what, found in checks if found]
+
+
 def prepare(obj, settings):
     frames = [(layer, layer.current_frame()) for layer in _chosen_layers(obj, settings)]
     frames = [(layer, frame) for layer, frame in frames if frame is not None and frame.drawing is not None]
@@ -109,7 +129,8 @@ def prepare(obj, settings):
             o.data.attributes.new(name, "BOOLEAN", "LAYER").data.foreach_set("value", marks)
         o.shapedeform[RIGGED_KEY] = name
 
-    return Prepared(plane, graph, commit)
+    # Stroke Order is on wherever it costs the drawing nothing.
+    return Prepared(plane, graph, commit, modifier_inputs={ORDER_INPUT: not stroke_order_losses(obj)})
 
 
 def unbind(obj):

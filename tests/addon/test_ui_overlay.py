@@ -35,10 +35,12 @@ def test_overlay_draws_the_posed_graph_and_regions(addon):
 
 
 class RecordingLayout:
-    """Stands in for a UI layout headless: records the operators and properties drawn."""
+    """Stands in for a UI layout headless: records the operators and properties drawn, and
+    apart from them the labels' texts."""
 
-    def __init__(self, record=None):
+    def __init__(self, record=None, labels=None):
         self.record = [] if record is None else record
+        self.labels = [] if labels is None else labels
 
     def operator(self, idname, **_):
         self.record.append(idname)
@@ -47,22 +49,23 @@ class RecordingLayout:
     def prop(self, _data, name, **_):
         self.record.append(name)
 
-    def label(self, **_):
-        pass
+    def label(self, text="", **_):
+        self.labels.append(text)
 
     def template_list(self, *args, **_):
         pass
 
     def column(self, **_):
-        return RecordingLayout(self.record)
+        return RecordingLayout(self.record, self.labels)
 
     row = column
 
 
-def drawn(context):
+def drawn(context, labels=False):
+    """The operators and properties the panel draws (with ``labels``, the labels' texts)."""
     panel = SimpleNamespace(layout=RecordingLayout())
     bpy.types.SHAPEDEFORM_PT_panel.draw(panel, context)
-    return panel.layout.record
+    return panel.layout.labels if labels else panel.layout.record
 
 
 def test_panel_offers_bind_then_handles_weights_and_bake_then_clear_bake(addon):
@@ -122,3 +125,10 @@ def test_panel_shows_the_modifier_option_for_the_kind_of_object(addon):
         modifier = shapedeform.rig_format.modifiers_of(obj)[0]
         identifier = shapedeform.nodes.input_identifiers(modifier.node_group)[name]
         assert shapedeform.compat.modifier_input_property(modifier, identifier)[1] in drawn(bpy.context)
+    # The monkey's layers are lit: bind left Stroke Order off, and the panel says why.
+    bpy.context.view_layer.objects.active = monkey
+    assert "Would drop lights on 'Fills', 'Lines'" in drawn(bpy.context, labels=True)
+    modifier = shapedeform.rig_format.modifiers_of(monkey)[0]
+    shapedeform.compat.set_modifier_input(
+        modifier, shapedeform.nodes.input_identifiers(modifier.node_group)["Stroke Order"], True)
+    assert "Drops lights on 'Fills', 'Lines'" in drawn(bpy.context, labels=True)
