@@ -138,7 +138,8 @@ def _build(group):
     order.description = ("Grease pencil: in each layer, draw the strokes lying on a part the pose folds over "
                          "another after the others, which keep their order (rebuilds the layers: their blend "
                          "modes, masks and view-layer filters are not kept, Use Lights is turned off, and layers "
-                         "get a drawing on every frame). Bind turns it on where the drawing uses none of these")
+                         "keep only the current frame's drawing, so onion skins vanish). Bind turns it on where "
+                         "the drawing uses none of these")
     order.default_value = False
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     b = _Builder(group)

@@ -73,12 +73,14 @@ def stroke_order_losses(obj):
     Stroke Order passes the drawings through curves and back (Sort Elements does not sort
     grease-pencil strokes), which makes new layers: opacity, tint, transform, pass index and
     radius offset are carried over, their lighting, blend modes, masks and view-layer filters
-    are not. Lighting matters only where the object uses lights too (the 2D Animation
-    template's objects do not).
+    are not, and each keeps only the current frame's drawing, so onion skins of its other
+    keyframes vanish from the viewport. Lighting matters only where the object uses lights too
+    (the 2D Animation template's objects do not).
     """
     layers = list(obj.data.layers)
     checks = (
         ("lights on", [layer for layer in layers if layer.use_lights] if obj.use_grease_pencil_lights else []),
+        ("onion skins of", [layer for layer in layers if layer.use_onion_skinning and len(layer.frames) > 1]),
         ("blend modes of", [layer for layer in layers if layer.blend_mode != "REGULAR"]),
         ("masks of", [layer for layer in layers if layer.use_masks and len(layer.mask_layers)]),
         ("view-layer filters of", [layer for layer in layers if layer.viewlayer_render]),

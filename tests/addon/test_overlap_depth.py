@@ -259,7 +259,8 @@ def monkey_seen_from_the_front():
 
 def test_bind_turns_stroke_order_on_where_the_drawing_loses_nothing_by_it(addon):
     """Stroke Order rebuilds the layers: bind turns it on unless a layer is lit (in a lit
-    object), blended, masked or filtered by view layer, and the sidebar says what it drops."""
+    object), blended, masked, filtered by view layer or has keyframes to show as onion skins,
+    and the sidebar says what it drops."""
     losses = addon.shapedeform_addon.sources.grease_pencil.stroke_order_losses
 
     def bound(setup):
@@ -290,9 +291,14 @@ def test_bind_turns_stroke_order_on_where_the_drawing_loses_nothing_by_it(addon)
         unlit(obj)
         lines.viewlayer_render = bpy.context.view_layer.name
 
+    def animated(obj, fills, lines):
+        unlit(obj)
+        lines.frames.copy(lines.frames[0].frame_number, 5)  # a second keyframe, shown as an onion skin
+
     assert bound(blended) == (["blend modes of 'Lines'"], False)
     assert bound(masked) == (["masks of 'Fills'"], False)
     assert bound(filtered) == (["view-layer filters of 'Lines'"], False)
+    assert bound(animated) == (["onion skins of 'Lines'"], False)
 
 
 def stroke_order_input(addon, obj):
