@@ -256,17 +256,18 @@ def _build(group):
     height = b.node("ShaderNodeVectorMath", [position, plane_normal], operation="DOT_PRODUCT").outputs["Value"]
     below = b.node("ShaderNodeVectorMath", {"Vector": plane_normal, "Scale": b.node(
         "ShaderNodeMath", [cage_size, -2.0], operation="MULTIPLY").outputs[0]}, operation="SCALE").outputs[0]
+    reach = b.node("ShaderNodeMath", [cage_size, 4.0], operation="MULTIPLY").outputs[0]
     ray = b.node("GeometryNodeRaycast", {"Target Geometry": posed_cage, "Source Position": b.math("ADD", position, below),
-                                         "Ray Direction": plane_normal, "Ray Length": b.node(
-                                             "ShaderNodeMath", [cage_size, 4.0], operation="MULTIPLY").outputs[0]})
+                                         "Ray Direction": plane_normal, "Ray Length": reach})
     lowest = b.node("ShaderNodeVectorMath", [ray.outputs["Hit Position"], plane_normal],
                     operation="DOT_PRODUCT").outputs["Value"]
     # A ten-thousandth of the cage's size: far above rounding where the point and the layer
     # under it are the same, below the lift between the layers of any fold whose top moved a
     # hundredth of the size more than its bottom (solver/rigging/depth.py).
     margin = b.node("ShaderNodeMath", [cage_size, 1e-4], operation="MULTIPLY").outputs[0]
-    higher = b.node("FunctionNodeCompare", {"A": b.node("ShaderNodeMath", [height, lowest], operation="SUBTRACT").outputs[0],
-                                            "B": margin}, data_type="FLOAT", operation="GREATER_THAN").outputs[0]
+    above = b.node("ShaderNodeMath", [height, lowest], operation="SUBTRACT").outputs[0]
+    higher = b.node("FunctionNodeCompare", {"A": above, "B": margin}, data_type="FLOAT",
+                    operation="GREATER_THAN").outputs[0]
     over_fold = b.node("FunctionNodeBooleanMath", [ray.outputs["Is Hit"], higher], operation="AND").outputs[0]
     share_over = b.node("GeometryNodeFieldOnDomain", {"Value": over_fold}, domain="CURVE", data_type="FLOAT").outputs[0]
     sort_weight = b.node("FunctionNodeCompare", {"A": share_over, "B": 0.5}, data_type="FLOAT",
