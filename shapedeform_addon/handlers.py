@@ -42,6 +42,15 @@ def _report(message):
 
 
 def _pose(objects, depsgraph):
+    """Pose ``objects``' rigs and write their cages.
+
+    Blender evaluates again by itself when a depsgraph_update_post or frame_change_post
+    handler tagged data (a second pass without callbacks), so what is evaluated when the
+    update or frame change returns shows the new pose. Evaluating from inside the handler
+    instead (``depsgraph.update()``) crashed Blender at the next update after a frame change,
+    or after an update that rebuilt the depsgraph's relations (an object linked, hidden or
+    parented, a modifier added).
+    """
     if not objects:
         return
     with paused():  # writing the cages makes Blender call us back
@@ -51,7 +60,6 @@ def _pose(objects, depsgraph):
             message = rig.pose_safely(obj, depsgraph)
             if message:
                 _report(message)
-        depsgraph.update()  # so what is evaluated now shows the new pose, not the previous one
     if not rig.final_quality() and rig.unsettled(bpy.context.scene):
         if bpy.app.timers.is_registered(refine):
             bpy.app.timers.unregister(refine)  # still moving: wait for the next pause

@@ -682,3 +682,46 @@ def test_a_file_with_an_older_node_group_keeps_its_rigs_when_the_group_is_rebuil
     rig.move(0.1)
     assert old.shapedeform.status == ""
     assert np.abs(layer_points(old)["Lines"] - posed["Lines"]).max() > 0.05
+
+
+# -- updates that change the scene as a handle moves -------------------------------------------
+
+SCENE_EDITS = {
+    "an object linked": lambda other, handle: bpy.context.scene.collection.objects.link(
+        bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))),
+    "a modifier added": lambda other, handle: other.modifiers.new("Subdivision", "SUBSURF"),
+    "an object parented": lambda other, handle: setattr(other, "parent", handle),
+    "an object hidden": lambda other, handle: setattr(other, "hide_viewport", True),
+    "an object deleted": lambda other, handle: bpy.data.objects.remove(other),
+    "a frame change": lambda other, handle: bpy.context.scene.frame_set(3),
+}
+
+
+@pytest.mark.parametrize("edit", SCENE_EDITS)
+def test_one_update_shows_the_pose_whatever_else_changed(addon, edit, quiet):
+    """A handle moves in the same update as an edit that rebuilds the depsgraph's relations,
+    or its keys move it on a frame change: that update shows the new pose (a second one changes
+    nothing), and the updates after it evaluate. (Solving evaluated the depsgraph again from
+    inside its own handler, and Blender crashed at the next update.)"""
+    obj = grid()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    handle.keyframe_insert("location", frame=1)
+    handle.location.x += 0.6
+    handle.keyframe_insert("location", frame=5)
+    bpy.context.scene.frame_set(1)
+    other = bpy.data.objects.new("Other", bpy.data.meshes.new("Other"))
+    bpy.context.scene.collection.objects.link(other)
+    bpy.context.view_layer.update()
+    rest = checks.evaluated_mesh_points(obj)
+    if edit != "a frame change":
+        handle.location.y += 0.3
+    SCENE_EDITS[edit](other, handle)
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_mesh_points(obj)
+    assert np.abs(posed - rest).max() > 0.05
+    for _ in range(2):
+        obj.update_tag()
+        bpy.context.view_layer.update()
+        np.testing.assert_allclose(checks.evaluated_mesh_points(obj), posed, atol=1e-6)
