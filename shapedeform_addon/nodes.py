@@ -244,11 +244,11 @@ def _build(group):
     # Grease pencil draws strokes in their order within a layer. Where the pose folds the shape
     # over itself, the strokes lying on the folded-over part must draw after the ones under it;
     # everywhere else the drawing's own order stands (a face's fill under its eyes, say, even
-    # where the face moved further than the eyes). A point lies over a fold when the posed
-    # cage has a lower layer under it: a ray from below finds the lowest layer, and the point
-    # is higher. Strokes with most of their points over a fold sort after the others, each group
-    # keeping its order (Sort Elements is stable): a face's fill that a folded ear covers only
-    # at its edge stays under the eyes drawn on it.
+    # where the face moved further than the eyes). A ray from behind along the plane's normal
+    # through the posed cage finds the lowest layer at each point; the point lies over a fold
+    # when it is higher. A stroke most of whose points lie over a fold sorts after the others,
+    # each group keeping its order (Sort Elements is stable). A stroke the fold laid partly over
+    # itself (a head's fill with its ears) cannot be split, and stays where most of it lies.
     cage_box = b.node("GeometryNodeBoundBox", {"Geometry": rest_cage})
     cage_size = b.node("ShaderNodeVectorMath", [cage_box.outputs["Min"], cage_box.outputs["Max"]],
                        operation="DISTANCE").outputs["Value"]
@@ -269,7 +269,11 @@ def _build(group):
     higher = b.node("FunctionNodeCompare", {"A": above, "B": margin}, data_type="FLOAT",
                     operation="GREATER_THAN").outputs[0]
     over_fold = b.node("FunctionNodeBooleanMath", [ray.outputs["Is Hit"], higher], operation="AND").outputs[0]
-    share_over = b.node("GeometryNodeFieldOnDomain", {"Value": over_fold}, domain="CURVE", data_type="FLOAT").outputs[0]
+    # Evaluated at each point as a number, then averaged over the stroke (on the curve domain
+    # alone the test would run once, at the stroke's mean position; as a boolean, the points
+    # would be combined as booleans, not counted).
+    each = b.node("GeometryNodeFieldOnDomain", {"Value": over_fold}, domain="POINT", data_type="FLOAT").outputs[0]
+    share_over = b.node("GeometryNodeFieldOnDomain", {"Value": each}, domain="CURVE", data_type="FLOAT").outputs[0]
     sort_weight = b.node("FunctionNodeCompare", {"A": share_over, "B": 0.5}, data_type="FLOAT",
                          operation="GREATER_THAN").outputs[0]
     parts = b.node("GeometryNodeSeparateComponents", [moved.outputs[0]])
