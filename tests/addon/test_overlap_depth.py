@@ -257,11 +257,13 @@ def figure_seen_from_the_front():
     drawing.add_strokes([4 * per_side] * len(outlines))
     xyz = np.array([(x, 0.0, z) for x, z in points], np.float32)
     drawing.attributes["position"].data.foreach_set("vector", xyz.ravel())
-    for name in ("cyclic", "material_index"):
-        kind = "BOOLEAN" if name == "cyclic" else "INT"
+    # Closed, each in its own material; Blender 5.2 fills a stroke that has a fill_id (and
+    # hide_stroke leaves out its outline), earlier versions fill by material.
+    count = len(outlines)
+    for name, kind, values in (("cyclic", "BOOLEAN", [True] * count), ("material_index", "INT", range(count)),
+                               ("fill_id", "INT", range(1, count + 1)), ("hide_stroke", "BOOLEAN", [True] * count)):
         attribute = drawing.attributes.get(name) or drawing.attributes.new(name, kind, "CURVE")
-        values = [True] * len(outlines) if name == "cyclic" else list(range(len(outlines)))
-        attribute.data.foreach_set("value", values)
+        attribute.data.foreach_set("value", list(values))
     radius = drawing.attributes.get("radius") or drawing.attributes.new("radius", "FLOAT", "POINT")
     radius.data.foreach_set("value", np.full(len(xyz), 0.01, np.float32))
     for name, colour in colours.items():
