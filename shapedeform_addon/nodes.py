@@ -249,9 +249,7 @@ def _build(group):
     # when it is higher. A stroke most of whose points lie over a fold sorts after the others,
     # each group keeping its order (Sort Elements is stable). A stroke the fold laid partly over
     # itself (a head's fill with its ears) cannot be split, and stays where most of it lies.
-    cage_box = b.node("GeometryNodeBoundBox", {"Geometry": rest_cage})
-    cage_size = b.node("ShaderNodeVectorMath", [cage_box.outputs["Min"], cage_box.outputs["Max"]],
-                       operation="DISTANCE").outputs["Value"]
+    cage_size = b.node("ShaderNodeVectorMath", [span], operation="LENGTH").outputs["Value"]  # in its plane
     posed_cage = b.node("GeometryNodeSetPosition", {"Geometry": rest_cage, "Position": posed}).outputs[0]
     height = b.node("ShaderNodeVectorMath", [position, plane_normal], operation="DOT_PRODUCT").outputs["Value"]
     below = b.node("ShaderNodeVectorMath", {"Vector": plane_normal, "Scale": b.node(
