@@ -62,10 +62,15 @@ class Rig:
             [empty.shapedeform.extent * self.graph.size for empty, _ in overlap])
         self.in_front = np.zeros(len(overlap))
         self.signature = signature(obj)
-        # Graph positions of the last pose written (rest until posed), and whether that pose is
-        # what a render gives: converged, or solved with the Render budget.
-        self.posed = self.graph.points.copy()
+        # Graph positions of the pose shown (the cage's, as saved or last written), and whether
+        # it is what a render gives: converged, or solved with the Render budget.
+        self.posed = self._shown(settings.cage)
         self.settled = True
+
+    def _shown(self, cage):
+        """The graph positions (n, 2) the cage shows; the rest where they are not finite."""
+        shown = self.plane.to_2d(rig_format.shown_pose(cage))
+        return shown if np.all(np.isfinite(shown)) else self.graph.points.copy()
 
     def frames(self, obj, depsgraph=None):
         """Each handle's 2D frame in the shape's plane, (h, 3, 3), from evaluated transforms."""

@@ -143,6 +143,26 @@ def write_pose(cage, points):
     return True
 
 
+def shown_pose(cage):
+    """The pose the cage shows, (n, 3) float64 in rig space: its positions, or where a bake
+    holds it the mix of its shape keys at their current values."""
+    mesh = cage.data
+
+    def read(data, name):
+        flat = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        data.foreach_get(name, flat)
+        return flat.reshape(-1, 3).astype(np.float64)
+
+    key = mesh.shape_keys
+    if key is None:
+        return read(mesh.attributes["position"].data, "vector")
+    mix = read(key.reference_key.data, "co")
+    for block in key.key_blocks:
+        if block != key.reference_key and block.value and not block.mute:
+            mix += block.value * (read(block.data, "co") - read(block.relative_key.data, "co"))
+    return mix
+
+
 def rest_of(cage):
     """The cage's rest points (n, 3) float32, as stored at bind time."""
     mesh = cage.data
