@@ -306,6 +306,9 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
             baker.abort()
             self.report({"ERROR"}, f"Bake stopped, nothing was changed: {err}")
             return {"CANCELLED"}
+        except Exception:
+            baker.abort()  # a failure nobody foresaw still leaves the scene as it was
+            raise
         finally:
             wm.progress_end()
         self.report({"INFO"}, f"Baked {baker.total} frames of {len(baker.objects)} object(s)")
@@ -347,6 +350,10 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
             self._end(context)
             self.report({"ERROR"}, f"Bake stopped, nothing was changed: {err}")
             return {"CANCELLED"}
+        except Exception:
+            self.baker.abort()
+            self._end(context)
+            raise
         if not finished:
             return {"RUNNING_MODAL"}
         self._end(context)

@@ -13,6 +13,7 @@ from mathutils import Matrix
 
 from ..solver.rigging.handles import (frame_2d, handle_matrix, region_offsets, rest_position,
                                       select_region)
+from ..solver.rigging.plane import affine_inverse, transform_points
 from . import rig as rigs
 from . import rig_format
 from .errors import RigError
@@ -56,8 +57,10 @@ def add(obj, location, on_rest=False, kind="POSITION"):
         raise RigError(f"'{obj.name}' is not bound: bind it first")
     rig = rigs.get(obj)
     world = rig_format.rig_space(obj)
-    local = np.linalg.solve(world, np.append(np.asarray(location, dtype=np.float64), 1.0))[:3]
-    point = rig.plane.to_2d(local[None])[0]
+    if np.linalg.matrix_rank(world[:3, :3] @ rig.plane.axes[:2].T) < 2:
+        raise RigError(f"'{obj.name}' is scaled to zero across its shape: a handle cannot be placed on it")
+    local = transform_points(affine_inverse(world), np.asarray(location, dtype=np.float64)[None])
+    point = rig.plane.to_2d(local)[0]
     if not np.all(np.isfinite(point)):
         raise RigError("the handle's location is not a finite point")
     graph = rig.graph
@@ -82,7 +85,7 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     empty.empty_display_size = radius
     collection(obj).objects.link(empty)
     # A Matrix, not a list: a nested list would be read column by column.
-    cage_local = np.linalg.solve(np.array(obj.matrix_world, dtype=np.float64), world)
+    cage_local = affine_inverse(np.array(obj.matrix_world, dtype=np.float64)) @ world
     if obj.type == "CURVE" and obj.data.use_path:
         # A curve with path animation carries its children along the path: leave it unparented.
         empty.matrix_world = Matrix((world @ matrix).tolist())

@@ -15,6 +15,7 @@ import numpy as np
 from .. import solver
 from ..solver.rigging import depth
 from ..solver.rigging.handles import frame_2d, region_targets
+from ..solver.rigging.plane import affine_inverse
 from . import rig_format
 from .errors import RigError
 
@@ -79,7 +80,7 @@ class Rig:
             return np.array(o.matrix_world, dtype=np.float64)
 
         cage = obj.shapedeform.cage
-        to_rig = np.linalg.inv(world(cage))
+        to_rig = affine_inverse(world(cage))  # an object scaled to zero keeps its other axes
         return np.array([frame_2d(self.plane, to_rig @ world(h)) for h in self.handle_objects]).reshape(-1, 3, 3)
 
     def solve(self, frames, iterations):

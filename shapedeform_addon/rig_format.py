@@ -31,7 +31,7 @@ import bpy
 import numpy as np
 
 from .. import solver
-from ..solver.rigging.plane import Plane
+from ..solver.rigging.plane import Plane, affine_inverse
 from . import compat, nodes
 from .errors import RigError
 
@@ -263,16 +263,23 @@ def rig_space(obj):
     if cage is None:
         return world
     if cage.parent == obj:
-        return world @ np.array(cage.matrix_parent_inverse, dtype=np.float64) \
-            @ np.array(cage.matrix_basis, dtype=np.float64)
+        return world @ _cage_in_owner(cage)
     return np.array(cage.matrix_world, dtype=np.float64)
+
+
+def _cage_in_owner(cage):
+    return np.array(cage.matrix_parent_inverse, dtype=np.float64) @ np.array(cage.matrix_basis, dtype=np.float64)
 
 
 def rig_to_object(obj):
     """Matrix (4, 4) from the owner's rig space to its local space: identity until the user
     applies a transform (Apply Transform moves the data and leaves the cage, a child, where it
-    is), then the transform the data got since binding."""
-    return np.linalg.solve(np.array(obj.matrix_world, dtype=np.float64), rig_space(obj))
+    is), then the transform the data got since binding. Read from the cage's parenting where
+    it has one, so an object scaled to zero keeps it."""
+    cage = obj.shapedeform.cage
+    if cage is not None and cage.parent == obj:
+        return _cage_in_owner(cage)
+    return affine_inverse(np.array(obj.matrix_world, dtype=np.float64)) @ rig_space(obj)
 
 
 def is_baked(obj):

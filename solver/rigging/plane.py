@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Plane", "fit_plane", "transform_points", "DEFAULT_FLATNESS"]
+__all__ = ["Plane", "fit_plane", "transform_points", "affine_inverse", "DEFAULT_FLATNESS"]
 
 # A shape is flat when no point is further than this fraction of its size from the plane:
 # float32 coordinates of a rotated plane are off by about 1e-7 of the size, modelling slips
@@ -140,3 +140,18 @@ def transform_points(matrix, points):
     """Apply a 4x4 affine ``matrix`` to 3D ``points`` (p, 3); returns (p, 3) float64."""
     matrix = np.asarray(matrix, dtype=np.float64)
     return np.asarray(points, dtype=np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def affine_inverse(matrix):
+    """The inverse of a 4x4 affine ``matrix``; where it is singular (an object scaled to zero
+    along an axis) the least-squares inverse of its linear part, so points keep their
+    coordinates along the axes it does not flatten. Returns (4, 4) float64."""
+    matrix = np.asarray(matrix, dtype=np.float64)
+    try:
+        return np.linalg.inv(matrix)
+    except np.linalg.LinAlgError:
+        linear = np.linalg.pinv(matrix[:3, :3])
+        inverse = np.eye(4)
+        inverse[:3, :3] = linear
+        inverse[:3, 3] = -linear @ matrix[:3, 3]
+        return inverse

@@ -101,3 +101,12 @@ def empty_scene():
     """Start each test from the empty factory scene (enabled add-ons stay enabled)."""
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     yield
+
+
+@pytest.fixture
+def quiet(capfd):
+    """Fails the test when anything printed a traceback (an exception in a handler is only
+    printed by Blender, never raised to the caller)."""
+    yield
+    out, err = capfd.readouterr()
+    assert "Traceback" not in out + err, out + err

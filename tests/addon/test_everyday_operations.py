@@ -151,15 +151,6 @@ def lift(obj, points, index, axis):
     return float(through_cage(obj, flat)[0, axis] - flat[0, axis])
 
 
-@pytest.fixture
-def quiet(capfd):
-    """Fails the test when anything printed a traceback (an exception in a handler is only
-    printed by Blender, never raised to the caller)."""
-    yield
-    out, err = capfd.readouterr()
-    assert "Traceback" not in out + err, out + err
-
-
 def activate(obj):
     """Make ``obj`` the only selected object and the active one (as clicking it does)."""
     for o in bpy.context.selected_objects:

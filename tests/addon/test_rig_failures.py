@@ -4,6 +4,7 @@
 import math
 
 import bpy
+import pytest
 import numpy as np
 
 import rig_checks as checks
@@ -28,3 +29,46 @@ def test_a_handle_moved_to_nan_keeps_the_last_pose_and_reports(addon):
     bpy.context.view_layer.update()
     assert obj.shapedeform.status == ""
     assert np.all(np.isfinite(checks.evaluated_mesh_points(obj)))
+
+
+def test_an_object_scaled_to_zero_poses_bakes_and_comes_back(addon, quiet):
+    """Keying the object's scale to 0 (popping it in and out) and flattening it across its
+    plane: no traceback, no NaN, the bake runs through such frames and puts the scene back,
+    and a flattened object keeps its rig (its shape's own axes are intact); a handle cannot be
+    placed on an object with no extent, and says so. (What Blender's modifier stack makes of an
+    object flattened to no thickness is Blender's: its relative transforms divide by zero.)"""
+    obj, _, handle = rig_with_two_handles()
+    scene = bpy.context.scene
+    for frame, scale, y in ((1, 1.0, 0.0), (5, 0.0, 0.5), (10, 1.0, 0.8)):
+        scene.frame_set(frame)
+        obj.scale = (scale,) * 3
+        obj.keyframe_insert("scale")
+        handle.location.y = y
+        handle.keyframe_insert("location")
+    scene.frame_set(5)
+    assert obj.shapedeform.status == ""
+    assert np.all(np.isfinite(checks.evaluated_mesh_points(obj)))
+    scene.frame_set(10)
+    posed = checks.evaluated_mesh_points(obj).copy()
+
+    scene.frame_set(3)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=10) == {"FINISHED"}
+    assert scene.frame_current == 3
+    scene.frame_set(10)
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), posed, atol=1e-5)
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+
+    obj.animation_data_clear()
+    obj.scale = (1.0, 1.0, 0.0)  # S Z 0 on a shape in the XY plane
+    handle.location.y += 0.1
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    assert np.all(np.isfinite(checks.evaluated_mesh_points(obj)))
+    checks.add_handle(obj, checks.world(obj, [0.0, 0.2, 0.0]))
+    assert obj.shapedeform.status == ""
+
+    obj.scale = (0.0, 0.0, 0.0)
+    bpy.context.view_layer.update()
+    with pytest.raises(RuntimeError, match="scaled to zero"):
+        bpy.ops.shapedeform.add_handle(location=(0.0, 0.0, 0.0))
