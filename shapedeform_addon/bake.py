@@ -128,7 +128,8 @@ class Bake:
     Raises
     ------
     RigError
-        An object is not bound, has no handles, or is of a kind that cannot be baked.
+        An object is not bound, has no handles, is of a kind that cannot be baked, or is not
+        evaluated in the context's view layer.
     """
 
     def __init__(self, objects, frames, step=1, scene=None):
@@ -149,6 +150,13 @@ class Bake:
                                "unbind it and bind it again")
             if not any(rig_format.present(item.object) for item in settings.handles):
                 raise RigError(f"'{obj.name}' has no handles: nothing moves, nothing to bake")
+        # Frames are posed from this depsgraph: an object it leaves out would bake stale handles.
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        for obj in self.objects:
+            if not obj.evaluated_get(depsgraph).is_evaluated:
+                raise RigError(f"'{obj.name}' is not evaluated in the view layer '{depsgraph.view_layer.name}' "
+                               "(disabled in viewports, or excluded there): enable it, or bake from a view "
+                               "layer that shows it")
         self.frames = list(frames)
         if not self.frames:
             raise RigError("Nothing to bake: the frame range is empty")

@@ -62,8 +62,34 @@ def parser():
     sub.add_argument("--step", type=int, default=1, help="bake every n-th frame (default 1)")
     sub.add_argument("--objects", nargs="+", metavar="NAME", help="only these objects (default: every rig)")
     sub.add_argument("--scene", metavar="NAME", help="scene to bake (default: the file's active scene)")
-    sub.add_argument("--output", metavar="FILE.blend", help="save here instead of over the opened file")
+    sub.add_argument("--view-layer", metavar="NAME",
+                     help="view layer whose evaluation is baked (default: the scene's active one)")
+    sub.add_argument("--output", metavar="FILE.blend",
+                     help="save here instead of over the opened file (// is the opened file's folder)")
     return top
+
+
+def _negative_ranges_joined(argv):
+    """``--frames -10--1`` as ``--frames=-10--1``: argparse takes a value starting with '-' for
+    an option unless it is a plain negative number."""
+    joined = []
+    for arg in argv:
+        if joined and joined[-1] == "--frames" and re.match(r"-\d", arg):
+            joined[-1] = f"--frames={arg}"
+        else:
+            joined.append(arg)
+    return joined
+
+
+def _output_path(output):
+    """The absolute path ``--output`` names (``//`` relative to the opened file); None without."""
+    if output is None:
+        return None
+    if not output.strip():
+        raise _UsageError("--output is empty: name a .blend file, or leave --output out to save over the opened one")
+    if output.startswith("//") and not bpy.data.filepath:
+        raise _UsageError(f"--output {output}: '//' is the opened file's folder, and no file is open")
+    return os.path.abspath(bpy.path.abspath(output))
 
 
 def _bake(args):
@@ -72,11 +98,17 @@ def _bake(args):
         raise _UsageError(f"no scene named '{args.scene}' in {bpy.data.filepath or 'the file'}")
     if args.step < 1:
         raise _UsageError(f"--step must be 1 or more, got {args.step}")
-    if args.output is None and not bpy.data.filepath:
+    context = {"scene": scene}  # the view layer is then the window's, if the scene has it, else the first
+    if args.view_layer is not None:
+        context["view_layer"] = scene.view_layers.get(args.view_layer)
+        if context["view_layer"] is None:
+            raise _UsageError(f"no view layer named '{args.view_layer}' in scene '{scene.name}'")
+    output = _output_path(args.output)
+    if output is None and not bpy.data.filepath:
         raise _UsageError("no .blend file is open: give it before -c (blender -b shot.blend -c ...) "
                           "or pass --output")
-    if args.output is not None:
-        folder = os.path.dirname(os.path.abspath(args.output))
+    if output is not None:
+        folder = os.path.dirname(output)
         if not os.path.isdir(folder):
             raise _UsageError(f"--output: the folder {folder} does not exist")
     if args.objects:
@@ -88,7 +120,8 @@ def _bake(args):
         if unbound:
             raise _UsageError(f"not rigged with Shape Deform: {', '.join(map(repr, unbound))}")
     else:
-        objects = [o for o in rig_format.owners(scene) if any(h.object for h in o.shapedeform.handles)]
+        objects = [o for o in rig_format.owners(scene)
+                   if any(rig_format.present(h.object) for h in o.shapedeform.handles)]
         if not objects:
             raise _UsageError(f"scene '{scene.name}' has no rigs with handles to bake")
     start, end = args.frames or (scene.frame_start, scene.frame_end)
@@ -98,10 +131,10 @@ def _bake(args):
     def progress(done, total):
         print(f"{COMMAND}: frame {done}/{total}", flush=True)
 
-    with bpy.context.temp_override(scene=scene):
+    with bpy.context.temp_override(**context):
         bake.bake_objects(objects, start, end, args.step, scene=scene, progress=progress)
-    target = os.path.abspath(args.output) if args.output else bpy.data.filepath
-    bpy.ops.wm.save_as_mainfile(filepath=target, copy=args.output is not None)
+    target = output or bpy.data.filepath
+    bpy.ops.wm.save_as_mainfile(filepath=target, copy=output is not None)
     print(f"{COMMAND}: saved {target}", flush=True)
 
 
@@ -114,7 +147,7 @@ def main(argv):
         The arguments after ``-c shapedeform``.
     """
     try:
-        args = parser().parse_args(list(argv))
+        args = parser().parse_args(_negative_ranges_joined(argv))
         if args.command == "bake":
             _bake(args)
     except SystemExit as done:  # --help

@@ -43,7 +43,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 7
+VERSION = 8
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -55,6 +55,11 @@ SCAFFOLD = "sd_unsorted"  # only inside the group: layers that carry materials t
 RIGGED = "sd_rigged"
 CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT = "Cage", "Owner", "Rigged Layers"
 REFINE_INPUT, ORDER_INPUT = "Refine", "Stroke Order"
+# The rig's handle collection. Nothing in the group reads it: a modifier's ID inputs are its
+# object's dependencies, so Blender evaluates the handles' animation wherever the object is
+# evaluated, even where their collection is hidden, disabled in renders or excluded.
+HANDLES_INPUT = "Handles"
+KEPT_INPUTS = (CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT, HANDLES_INPUT)
 
 
 def node_group():
@@ -67,8 +72,8 @@ def node_group():
     # Rebuilding gives the inputs new identifiers: carry each modifier's values over by name.
     users = [m for o in bpy.data.objects for m in o.modifiers if m.type == "NODES" and m.node_group == group]
     old = input_identifiers(group)
-    kept = [(m, {name: compat.modifier_input(m, key) for name, key in old.items()
-                 if name in (CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT)}) for m in users]  # not the geometry
+    kept = [(m, {name: compat.modifier_input(m, key) for name, key in old.items() if name in KEPT_INPUTS})
+            for m in users]  # not the geometry
     _build(group)
     group[VERSION_KEY] = VERSION
     new = input_identifiers(group)
@@ -78,6 +83,9 @@ def node_group():
                 compat.set_modifier_input(modifier, new[name], value)
         if RIGGED_INPUT not in old:
             compat.set_modifier_input(modifier, new[RIGGED_INPUT], RIGGED)
+        owner = values.get(OWNER_INPUT)
+        if HANDLES_INPUT not in old and owner is not None and owner.shapedeform.handle_collection is not None:
+            compat.set_modifier_input(modifier, new[HANDLES_INPUT], owner.shapedeform.handle_collection)
     return group
 
 
@@ -141,6 +149,9 @@ def _build(group):
                          "keep only the current frame's drawing, so onion skins vanish). Bind turns it on where "
                          "the drawing uses none of these")
     order.default_value = False
+    handles = group.interface.new_socket(HANDLES_INPUT, in_out="INPUT", socket_type="NodeSocketCollection")
+    handles.description = ("The rig's handles: named here so Blender evaluates them wherever this object is "
+                           "evaluated, even where their collection is hidden")
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     b = _Builder(group)
     given = b.node("NodeGroupInput")

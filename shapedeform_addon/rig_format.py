@@ -179,7 +179,7 @@ def add_modifier(obj, cage, owner, inputs=None):
     modifier.node_group = group
     modifier.show_in_editmode = True
     ids = nodes.input_identifiers(group)
-    values = {nodes.CAGE_INPUT: cage, nodes.OWNER_INPUT: owner,
+    values = {nodes.CAGE_INPUT: cage, nodes.OWNER_INPUT: owner, nodes.HANDLES_INPUT: owner.shapedeform.handle_collection,
               nodes.RIGGED_INPUT: owner.shapedeform.get(RIGGED_KEY, ""), **(inputs or {})}
     for name, value in values.items():
         compat.set_modifier_input(modifier, ids[name], value)

@@ -208,6 +208,8 @@ def test_command_line_bakes_a_saved_file(addon, tmp_path, capsys):
                          (["bake", "--frames", "9-2"], "comes before"),
                          (["bake", "--objects", "Nobody"], "no object named 'Nobody'"),
                          (["bake", "--output", str(tmp_path / "missing" / "x.blend")], "does not exist"),
+                         (["bake", "--output", ""], "--output is empty"),  # an unset farm variable
+                         (["bake", "--view-layer", "Nobody"], "no view layer named 'Nobody'"),
                          (["frobnicate"], "invalid choice")]:
         assert main(bad) == 2, bad
         assert message in capsys.readouterr().err
@@ -224,6 +226,68 @@ def test_command_line_bakes_a_saved_file(addon, tmp_path, capsys):
     assert main(["bake", "--frames", "2-3"]) == 0  # every rig, saved in place
     bpy.ops.wm.open_mainfile(filepath=path)
     assert len(cage_keys(bpy.data.objects["Grid"])) == 3
+
+
+def test_command_line_paths_negative_frames_and_rigs_whose_handles_were_deleted(addon, tmp_path):
+    """``--output //name`` lands beside the opened file; ``--frames -2-1`` and ``-3--1`` (the
+    documented forms) bake negative frames; a rig whose handles were deleted by hand (X keeps
+    them as orphans the rig still points at) is left out instead of failing the whole bake."""
+    grid().name = "Hero"
+    rig(bpy.data.objects["Hero"], [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    extra = grid()
+    extra.name = "Extra"
+    bpy.context.view_layer.objects.active = extra
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    handle = checks.add_handle(extra, checks.world(extra, [0.0, 0.0, 0.0]))
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    handle.select_set(True)
+    bpy.context.view_layer.objects.active = handle
+    assert bpy.ops.object.delete() == {"FINISHED"}
+    path = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    main = addon.shapedeform_addon.cli.main
+
+    assert main(["bake", "--frames", "-2-1", "--output", "//baked.blend"]) == 0
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "baked.blend"))
+    assert cage_keys(bpy.data.objects["Hero"])[1:] == [f"sd_bake_{f:04d}" for f in (-2, -1, 0, 1)]
+    assert cage_keys(bpy.data.objects["Extra"]) == []
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert main(["bake", "--frames", "-3--1"]) == 0
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert cage_keys(bpy.data.objects["Hero"])[1:] == [f"sd_bake_{f:04d}" for f in (-3, -2, -1)]
+
+
+def test_a_rig_left_out_of_the_view_layer_is_refused_or_baked_from_one_that_shows_it(addon, tmp_path, capsys):
+    """A rig the baking view layer does not evaluate (excluded there, or its collection
+    disabled in viewports) would bake stale handles: the bake refuses and names the view layer;
+    the command line bakes it from another view layer that shows it."""
+    scene = bpy.context.scene
+    character = bpy.data.collections.new("Character")
+    scene.collection.children.link(character)
+    obj = grid()
+    for collection in obj.users_collection:
+        collection.objects.unlink(obj)
+    character.objects.link(obj)
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    expected = live(lambda: checks.evaluated_mesh_points(obj))
+    scene.view_layers.new("Render")
+    bpy.context.view_layer.layer_collection.children["Character"].exclude = True
+    bpy.context.view_layer.update()
+    path = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+
+    with pytest.raises(addon.shapedeform_addon.errors.RigError, match="not evaluated in the view layer"):
+        addon.shapedeform_addon.bake.bake_objects([obj], 1, 6)
+    main = addon.shapedeform_addon.cli.main
+    assert main(["bake", "--frames", "1-6"]) == 1
+    assert "not evaluated in the view layer 'ViewLayer'" in capsys.readouterr().err
+    assert main(["bake", "--frames", "1-6", "--view-layer", "Render"]) == 0
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["Grid"]
+    assert len(cage_keys(obj)) == 1 + len(FRAMES)
+    bpy.context.view_layer.layer_collection.children["Character"].exclude = False
+    assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
 
 
 def test_binding_locks_the_interface_during_renders(addon):

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from mathutils import Matrix, Vector
 
+import renders
 import rig_checks as checks
 from test_rig_curve import curve_points, evaluated_vertices, text_curve
 from test_rig_image_plane import import_picture
@@ -712,9 +713,9 @@ def test_a_file_with_an_older_node_group_keeps_its_rigs_when_the_group_is_rebuil
     posed = layer_points(old)
     group = old.modifiers[0].node_group
     # An older version of the group: version 1 had no input naming the layer attribute (it
-    # read "sd_rigged").
-    if hasattr(nodes, "RIGGED_INPUT"):
-        group.interface.remove(group.interface.items_tree[nodes.RIGGED_INPUT])
+    # read "sd_rigged"), nor one naming the handles (before version 8).
+    for name in (nodes.RIGGED_INPUT, nodes.HANDLES_INPUT):
+        group.interface.remove(group.interface.items_tree[name])
     group[nodes.VERSION_KEY] = nodes.VERSION - 1
     mesh = grid()
     Rigged(mesh).move(0.3)  # binding rebuilds the group
@@ -723,6 +724,9 @@ def test_a_file_with_an_older_node_group_keeps_its_rigs_when_the_group_is_rebuil
     for layer in ("Fills", "Lines"):
         np.testing.assert_allclose(layer_points(old)[layer], posed[layer], atol=1e-6, err_msg=layer)
     assert layer_points(old)["Fills"].tobytes() == rest["Fills"].tobytes()
+    compat = addon.shapedeform_addon.compat
+    handles_input = nodes.input_identifiers(group)[nodes.HANDLES_INPUT]
+    assert compat.modifier_input(old.modifiers[0], handles_input) == old.shapedeform.handle_collection
     rig.move(0.1)
     assert old.shapedeform.status == ""
     assert np.abs(layer_points(old)["Lines"] - posed["Lines"]).max() > 0.05
@@ -769,3 +773,59 @@ def test_one_update_shows_the_pose_whatever_else_changed(addon, edit, quiet):
         obj.update_tag()
         bpy.context.view_layer.update()
         np.testing.assert_allclose(checks.evaluated_mesh_points(obj), posed, atol=1e-6)
+
+
+# -- the handles' collection hidden -------------------------------------------------------------
+
+def _render_frame(frame, tmp_path, name):
+    """Render ``frame`` as an animation of one frame (as a farm does: the frame is set, and
+    evaluated, by the render), from frame 1, and return its pixels."""
+    scene = bpy.context.scene
+    scene.frame_set(1)
+    scene.frame_start = scene.frame_end = frame
+    renders.render(tmp_path / "still.png", size=48)  # the engine and its settings
+    scene.render.filepath = str(tmp_path / f"{name}_")
+    bpy.ops.render.render(animation=True)
+    image = bpy.data.images.load(str(tmp_path / f"{name}_{frame:04d}.png"))
+    pixels = np.array(image.pixels[:], dtype=np.float32)
+    bpy.data.images.remove(image)
+    return pixels
+
+
+@pytest.mark.parametrize("hide", ["hide_viewport", "exclude", "hide_render"])
+def test_handles_drive_the_shape_wherever_their_collection_is_hidden(addon, hide, tmp_path, quiet):
+    """Hiding the rig's "<name> Handles" collection (disabled in viewports, excluded from the
+    view layer, or disabled in renders) leaves the deformation as it was: the handles' keyed
+    motion is evaluated, shown, baked and rendered (it froze at the last pose, or rendered the
+    rest, when the handles left the depsgraph)."""
+    obj = make_mesh(tmp_path)
+    rig = Rigged(obj)
+    scene = bpy.context.scene
+    rig.second.keyframe_insert("location", frame=1)
+    rig.second.location.y += 0.6
+    rig.second.keyframe_insert("location", frame=6)
+    expected = {}
+    for frame in (1, 6):
+        scene.frame_set(frame)
+        expected[frame] = evaluated(obj).copy()
+    assert np.abs(expected[6] - expected[1]).max() > 0.3
+    collection = obj.shapedeform.handle_collection
+    if hide == "hide_render":
+        renders.camera_over((0.0, 0.0), 3.0)
+        seen = _render_frame(6, tmp_path, "shown")
+        collection.hide_render = True
+        np.testing.assert_array_equal(_render_frame(6, tmp_path, "hidden"), seen)
+        return
+    if hide == "exclude":
+        bpy.context.view_layer.layer_collection.children[collection.name].exclude = True
+    else:
+        collection.hide_viewport = True
+    for frame in (6, 1, 6):
+        scene.frame_set(frame)
+        np.testing.assert_allclose(evaluated(obj), expected[frame], atol=1e-6, err_msg=f"frame {frame}")
+    assert obj.shapedeform.status == ""
+    scene.frame_set(1)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    scene.frame_set(6)
+    np.testing.assert_allclose(evaluated(obj), expected[6], atol=1e-5)
