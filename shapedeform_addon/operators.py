@@ -95,7 +95,9 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
                     bpy.ops.object.mode_set(mode="EDIT")
                 self.report({"ERROR"}, "Select points of the shape, or give a location")
                 return {"CANCELLED"}
-            world = np.array(active.matrix_world, dtype=np.float64)
+            # In the rig owner's space: a duplicate that follows its rig is mapped through the
+            # cage in the owner's local coordinates, wherever the duplicate stands.
+            world = np.array(obj.matrix_world, dtype=np.float64)
             locations = local @ world[:3, :3].T + world[:3, 3]
         added = []
         try:

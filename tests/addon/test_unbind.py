@@ -125,6 +125,32 @@ def test_a_duplicate_follows_the_rig_and_unbinding_it_leaves_the_original_alone(
     assert checks.mesh_points(original).tobytes() == rest.tobytes()
 
 
+def test_a_handle_added_in_edit_mode_on_a_duplicate_holds_the_selected_point(addon):
+    """Edit Mode on a duplicate that follows the rig, a point selected, Add Handle: the handle
+    goes to the rig (its owner's), on the point the duplicate shares with it, and moving it
+    moves that point of both (it was placed at the duplicate's world position, over another
+    part of the owner, and moved that part)."""
+    original, _, _ = rig_with_two_handles()
+    rest = checks.mesh_points(original).copy()
+    copy = _duplicate(original, False)
+    copy.location.x += 4.0
+    chosen = int(np.argmin(np.linalg.norm(rest[:, :2] - [0.0, -0.5], axis=1)))  # the bottom edge's middle
+    for element in (*copy.data.polygons, *copy.data.edges):
+        element.select = False
+    for vertex in copy.data.vertices:
+        vertex.select = vertex.index == chosen
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    handle = original.shapedeform.handles[-1].object
+    before = checks.evaluated_mesh_points(copy).copy()
+    handle.location.y -= 0.5
+    bpy.context.view_layer.update()
+    moved = np.linalg.norm(checks.evaluated_mesh_points(copy) - before, axis=1)
+    assert moved[chosen] == pytest.approx(0.5, abs=1e-4)
+    np.testing.assert_allclose(checks.evaluated_mesh_points(original), checks.evaluated_mesh_points(copy), atol=1e-6)
+
+
 def _assert_still_follows(original, handle, rest):
     """The original's rig is live: moving its right handle up moves the grid's right tip."""
     handle.location.y += 0.4
