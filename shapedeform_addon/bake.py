@@ -27,7 +27,7 @@ from . import compat, handlers, rig, rig_format
 from .errors import RigError
 
 PREFIX = "sd_bake_"
-MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
+MARK = rig_format.BAKE_MARK
 BAKED = rig_format.BAKED
 _LINEAR = 1  # Keyframe.interpolation 'LINEAR' as foreach_set takes it (the enum's value)
 

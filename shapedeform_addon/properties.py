@@ -5,9 +5,22 @@ Besides the properties declared here, a bound object keeps its rig's graph as ID
 ``obj.shapedeform``; :mod:`.rig_format` says what is stored where.
 """
 
+from functools import partial
+
 import bpy
-from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
-                       PointerProperty, StringProperty)
+from bpy import props
+
+
+def _overridable(kind):
+    """``kind`` of property, overridable: a library override of a rigged character keeps its
+    rig's pointers remapped to the overridden cage and handles, and its settings editable."""
+    return partial(kind, override={"LIBRARY_OVERRIDABLE"})
+
+
+BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty = (
+    _overridable(kind) for kind in (props.BoolProperty, props.CollectionProperty, props.EnumProperty,
+                                    props.FloatProperty, props.IntProperty, props.PointerProperty,
+                                    props.StringProperty))
 
 
 def _settings_changed(self, context):

@@ -39,6 +39,7 @@ GRAPH_KEYS = ("plane", "graph_points", "graph_edges", "graph_loops", "graph_loop
               "graph_spacing")
 MODIFIER_NAME = "Shape Deform"
 BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that plays
+BAKE_MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
 # On the owner's settings: the name of the attribute marking the grease-pencil layers its rig
 # deforms ("" for all of them); the modifier is given the same name.
 RIGGED_KEY = "rigged_attribute"
@@ -136,6 +137,10 @@ def make_cage(obj, plane, graph, collection):
 def write_pose(cage, points):
     """Write the pose (n, 3) float32 into the cage; False when a bake holds it (shape keys)."""
     mesh = cage.data
+    if mesh.library is not None:
+        # A library override of a rigged character: its cage's mesh is the library's, which
+        # nothing here can change. The cage takes a local copy, its own from now on.
+        mesh = cage.data = mesh.copy()
     if mesh.shape_keys is not None:
         return False
     mesh.attributes["position"].data.foreach_set("vector", points.ravel())
@@ -283,8 +288,14 @@ def rig_to_object(obj):
 
 
 def is_baked(obj):
-    """Whether the owner ``obj`` plays a bake (the live rig then leaves it alone)."""
-    return BAKED in obj.shapedeform
+    """Whether the owner ``obj`` plays a bake (the live rig then leaves it alone). The cage's
+    shape keys say so too: a library override keeps them with its local cage mesh, but not the
+    owner's ID properties."""
+    if BAKED in obj.shapedeform:
+        return True
+    cage = obj.shapedeform.cage
+    keys = cage.data.shape_keys if cage is not None else None
+    return keys is not None and bool(keys.get(BAKE_MARK))
 
 
 def owners(scene):

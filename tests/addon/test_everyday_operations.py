@@ -829,3 +829,57 @@ def test_handles_drive_the_shape_wherever_their_collection_is_hidden(addon, hide
     assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
     scene.frame_set(6)
     np.testing.assert_allclose(evaluated(obj), expected[6], atol=1e-5)
+
+
+# -- a library override of a rigged character ------------------------------------------------------
+
+def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon, tmp_path, quiet):
+    """The usual way to animate a linked character: link its collection into a shot, make a
+    library override, move and key its handles, bake on the farm. The rig poses (its cage takes
+    a local copy of the library's mesh, which nothing can write), the pose and the bake survive
+    reopening the shot, and the bake plays without the extension (the override's handles moved
+    nothing, and its bake was lost, when the pose was written into the library's mesh)."""
+    from test_bake import assert_plays_without_extension
+
+    character = bpy.data.collections.new("Character")
+    bpy.context.scene.collection.children.link(character)
+    obj = make_mesh(tmp_path)
+    for collection in obj.users_collection:
+        collection.objects.unlink(obj)
+    character.objects.link(obj)
+    Rigged(obj)
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    rest = evaluated(obj)
+
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    with bpy.data.libraries.load(library, link=True) as (_, linked):
+        linked.collections = ["Character"]
+    scene = bpy.context.scene
+    linked.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)  # as Make Library Override
+    bpy.context.view_layer.update()
+    obj = next(o for o in scene.objects if o.name == "Grid")
+    assert obj.override_library is not None
+    handle = obj.shapedeform.handles[1].object
+    assert handle.override_library is not None
+    handle.keyframe_insert("location", frame=1)
+    handle.location.y += 0.5
+    handle.keyframe_insert("location", frame=6)
+    expected = {}
+    for frame in (1, 6):
+        scene.frame_set(frame)
+        expected[frame] = evaluated(obj).copy()
+    assert obj.shapedeform.status == ""
+    assert np.abs(expected[6] - rest).max() > 0.3
+
+    shot = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    obj = next(o for o in bpy.context.scene.objects if o.name == "Grid")
+    bpy.context.scene.frame_set(6)
+    np.testing.assert_allclose(evaluated(obj), expected[6], atol=1e-6)
+    assert addon.shapedeform_addon.cli.main(["bake", "--frames", "1-6"]) == 0
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    obj = next(o for o in bpy.context.scene.objects if o.name == "Grid")
+    assert addon.shapedeform_addon.rig_format.is_baked(obj)
+    assert_plays_without_extension(lambda: evaluated(obj), expected, frames=(1, 6))
