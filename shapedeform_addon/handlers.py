@@ -90,7 +90,7 @@ def on_depsgraph_update(scene, depsgraph):
     """A handle moved (or a rigged object's handles did): solve and write at once.
 
     A duplicate of a rig's owner has its modifier pointed back at the owner here (duplicating
-    points it at the copy).
+    points it at the copy), or, made together with handles of the rig, a rig of its own.
     """
     if _busy:
         return
@@ -99,7 +99,7 @@ def on_depsgraph_update(scene, depsgraph):
         if not isinstance(update.id, bpy.types.Object):
             continue
         obj = update.id.original
-        if rig_format.is_follower(obj):
+        if rig_format.is_follower(obj) and not handles.adopt_duplicated(obj):
             rig_format.repair_owner(obj)
         if not update.is_updated_transform:
             continue

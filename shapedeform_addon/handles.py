@@ -14,8 +14,8 @@ from mathutils import Matrix
 from ..solver.rigging.handles import (frame_2d, handle_matrix, region_offsets, rest_position,
                                       select_region)
 from ..solver.rigging.plane import affine_inverse, transform_points
+from . import compat, nodes, rig_format
 from . import rig as rigs
-from . import rig_format
 from .errors import RigError
 
 
@@ -121,6 +121,51 @@ def _add_pin(obj, rig, point, kind):
     obj.shapedeform.active_handle = len(obj.shapedeform.handles) - 1
     rigs.invalidate(obj)
     return empty
+
+
+def adopt_duplicated(obj):
+    """Give a duplicate that was made together with handles of its rig a rig of its own, as
+    duplicating an armature with its mesh gives the copy its own armature; True when it did.
+
+    Duplicating objects together points the copies' references at each other: the copy's
+    handle list then names the copied Empties, whose rig is the copy. Those become its
+    handles; it gets its own cage (a copy of the rig's, pose and bake included) and its own
+    handle collection, and its list drops the handles that stayed with the original.
+    """
+    settings = obj.shapedeform
+    own = [item.object for item in settings.handles if owns(obj, item.object)]
+    if not own:
+        return False
+    shared = settings.cage
+    cage = shared.copy()
+    cage.data = shared.data.copy()
+    cage.shapedeform.rig = obj
+    if shared.parent is not None:
+        cage.parent = obj
+    for constraint in cage.constraints:  # a curve with path animation: the cage copies its transform
+        if getattr(constraint, "target", None) is not None:
+            constraint.target = obj
+    settings.handle_collection = None  # the original's: this rig gets its own
+    home = collection(obj)
+    home.objects.link(cage)
+    for empty in own:
+        for other in empty.users_collection:
+            other.objects.unlink(empty)
+        home.objects.link(empty)
+        if empty.parent == shared:  # a pin rides on the cage
+            empty.parent = cage
+    for i in reversed(range(len(settings.handles))):
+        if not owns(obj, settings.handles[i].object):
+            settings.handles.remove(i)
+    settings.cage = cage
+    settings.active_handle = min(settings.active_handle, len(settings.handles) - 1)
+    for modifier in rig_format.modifiers_of(obj):
+        ids = nodes.input_identifiers(modifier.node_group)
+        for name, value in ((nodes.CAGE_INPUT, cage), (nodes.OWNER_INPUT, obj), (nodes.HANDLES_INPUT, home)):
+            if name in ids:
+                compat.set_modifier_input(modifier, ids[name], value)
+    obj.update_tag()
+    return True
 
 
 def owns(obj, empty):

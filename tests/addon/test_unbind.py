@@ -125,6 +125,58 @@ def test_a_duplicate_follows_the_rig_and_unbinding_it_leaves_the_original_alone(
     assert checks.mesh_points(original).tobytes() == rest.tobytes()
 
 
+@pytest.mark.parametrize("linked", [False, True], ids=["Shift+D", "Alt+D"])
+def test_a_duplicate_made_with_its_handles_gets_a_rig_of_its_own(addon, linked, tmp_path, quiet):
+    """Duplicating a rigged object together with its handles (and a pin) gives the copy a rig
+    of its own, as duplicating a mesh with its armature does: each object's handles move only
+    it, through save and reopen, and unbinding the copy removes its handles, cage and collection
+    and leaves the original's (the copied handles moved nothing, and stayed behind)."""
+    original, left, right = rig_with_two_handles()
+    bpy.context.view_layer.objects.active = original
+    assert bpy.ops.shapedeform.add_handle(location=checks.world(original, [0.0, 0.0, 0.0]), kind="OVERLAP") == {"FINISHED"}
+    pin = original.shapedeform.handles[-1].object
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    for o in (original, left, right, pin):
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = original
+    assert bpy.ops.object.duplicate(linked=linked) == {"FINISHED"}
+    copy = bpy.context.active_object
+    copy.location.x += 3.0
+    bpy.context.view_layer.update()
+    rig_format = addon.shapedeform_addon.rig_format
+    assert rig_format.is_owner(copy) and rig_format.is_owner(original)
+    handles = [item.object for item in copy.shapedeform.handles]
+    assert len(handles) == 3 and not {left, right, pin} & set(handles)
+    assert copy.shapedeform.cage not in (None, original.shapedeform.cage)
+    assert copy.shapedeform.handle_collection != original.shapedeform.handle_collection
+    assert set(copy.shapedeform.handle_collection.objects) == {*handles, copy.shapedeform.cage}
+    assert handles[2].parent == copy.shapedeform.cage
+
+    def moves(handle, obj, other):
+        before = checks.evaluated_mesh_points(obj).copy(), checks.evaluated_mesh_points(other).copy()
+        handle.location.y += 0.3
+        bpy.context.view_layer.update()
+        assert obj.shapedeform.status == ""
+        assert np.abs(checks.evaluated_mesh_points(obj) - before[0]).max() > 0.2
+        np.testing.assert_array_equal(checks.evaluated_mesh_points(other), before[1])
+
+    moves(handles[1], copy, original)
+    moves(right, original, copy)
+    path = str(tmp_path / "two.blend")
+    names = original.name, copy.name
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    original, copy = (bpy.data.objects[name] for name in names)
+    moves(copy.shapedeform.handles[1].object, copy, original)
+    moves(original.shapedeform.handles[1].object, original, copy)
+
+    names = {o.name for o in bpy.data.objects} - {o.name for o in (*copy.shapedeform.handle_collection.objects, copy)}
+    unbind(copy)
+    assert {o.name for o in bpy.data.objects} == names | {copy.name}
+    moves(original.shapedeform.handles[0].object, original, copy)
+
+
 def test_a_handle_added_in_edit_mode_on_a_duplicate_holds_the_selected_point(addon):
     """Edit Mode on a duplicate that follows the rig, a point selected, Add Handle: the handle
     goes to the rig (its owner's), on the point the duplicate shares with it, and moving it
