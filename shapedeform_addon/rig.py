@@ -210,6 +210,9 @@ def pose_safely(obj, depsgraph=None, final=None):
     except RigError as err:
         message = str(err)
     owner = rig_format.owner_of(obj.original) or obj
+    if not message and not rig_format.modifiers_of(owner):
+        message = (f"'{owner.name}' lost its Shape Deform modifier (applied, removed, or converted): "
+                   "its handles no longer move it; Unbind removes the rig and keeps the shape")
     if owner.shapedeform.status != message:
         owner.shapedeform.status = message
     return message

@@ -72,3 +72,23 @@ def test_an_object_scaled_to_zero_poses_bakes_and_comes_back(addon, quiet):
     bpy.context.view_layer.update()
     with pytest.raises(RuntimeError, match="scaled to zero"):
         bpy.ops.shapedeform.add_handle(location=(0.0, 0.0, 0.0))
+
+
+def test_applying_the_modifier_says_the_handles_no_longer_move_it_and_unbind_keeps_the_shape(addon, quiet):
+    """Apply the Shape Deform modifier (or convert the object, which applies it): the posed
+    shape becomes the object's own, the sidebar says the handles no longer move it (they did
+    nothing, silently), and Unbind removes the rig and keeps the applied shape."""
+    obj, _, handle = rig_with_two_handles()
+    handle.location.y += 0.4
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_mesh_points(obj).copy()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.object.modifier_apply(modifier=obj.modifiers[0].name) == {"FINISHED"}
+    handle.location.y += 0.2
+    bpy.context.view_layer.update()
+    assert "lost its Shape Deform modifier" in obj.shapedeform.status
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), posed, atol=1e-6)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert not obj.shapedeform.is_bound
+    np.testing.assert_allclose(checks.mesh_points(obj), posed, atol=1e-6)
+    assert not any(o.shapedeform.rig == obj for o in bpy.data.objects)
