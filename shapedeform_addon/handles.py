@@ -59,8 +59,11 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     world = rig_format.rig_space(obj)
     if np.linalg.matrix_rank(world[:3, :3] @ rig.plane.axes[:2].T) < 2:
         raise RigError(f"'{obj.name}' is scaled to zero across its shape: a handle cannot be placed on it")
-    local = transform_points(affine_inverse(world), np.asarray(location, dtype=np.float64)[None])
-    point = rig.plane.to_2d(local)[0]
+    location = np.asarray(location, dtype=np.float64)
+    # Blender stores a location as float32, clamping an infinity to float32's largest value.
+    if not np.all(np.abs(location) < np.finfo(np.float32).max):
+        raise RigError("the handle's location is not a finite point")
+    point = rig.plane.to_2d(transform_points(affine_inverse(world), location[None]))[0]
     if not np.all(np.isfinite(point)):
         raise RigError("the handle's location is not a finite point")
     graph = rig.graph

@@ -92,3 +92,14 @@ def test_applying_the_modifier_says_the_handles_no_longer_move_it_and_unbind_kee
     assert not obj.shapedeform.is_bound
     np.testing.assert_allclose(checks.mesh_points(obj), posed, atol=1e-6)
     assert not any(o.shapedeform.rig == obj for o in bpy.data.objects)
+
+
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf])
+def test_a_handle_cannot_be_added_at_a_location_that_is_not_finite(addon, value):
+    """NaN is refused, and so is an infinity (which Blender's float property clamps to float32's
+    largest value: a handle there made every later solve non-finite)."""
+    obj, _, _ = rig_with_two_handles()
+    count = len(obj.shapedeform.handles)
+    with pytest.raises(RuntimeError, match="not a finite point"):
+        bpy.ops.shapedeform.add_handle(location=(value, 0.0, 0.0))
+    assert len(obj.shapedeform.handles) == count
