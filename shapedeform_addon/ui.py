@@ -49,6 +49,9 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
             col.operator("shapedeform.bind", icon="MOD_MESHDEFORM")
             return
         layout.operator("shapedeform.unbind", icon="X")
+        if obj.name not in context.scene.objects:
+            # Deleting a rigged object leaves its handles (as deleting a parent leaves its children).
+            layout.label(text=f"'{obj.name}' is not in this scene (deleted?): Unbind removes its rig", icon="INFO")
         if settings.status:
             layout.label(text=settings.status, icon="ERROR")
         layout.label(text="Handles")

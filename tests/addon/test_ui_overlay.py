@@ -132,3 +132,23 @@ def test_panel_shows_the_modifier_option_for_the_kind_of_object(addon):
     shapedeform.compat.set_modifier_input(
         modifier, shapedeform.nodes.input_identifiers(modifier.node_group)["Stroke Order"], True)
     assert "Drops lights on 'Fills', 'Lines'" in drawn(bpy.context, labels=True)
+
+
+def test_a_handle_left_by_a_deleted_object_offers_unbind_and_says_why(addon):
+    """Deleting a rigged object leaves its handles, as deleting a parent leaves its children;
+    the sidebar on one of them says the object is gone and Unbind removes the rest of its rig."""
+    obj = grid()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    name = obj.name
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.object.delete() == {"FINISHED"}
+    bpy.context.view_layer.objects.active = handle
+    assert any("not in this scene" in text for text in drawn(bpy.context, labels=True))
+    assert "shapedeform.unbind" in drawn(bpy.context)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert not any(o.shapedeform.rig is not None and o.shapedeform.rig.name == name for o in bpy.data.objects)
