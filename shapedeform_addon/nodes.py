@@ -145,7 +145,7 @@ def _build(group):
     order = group.interface.new_socket(ORDER_INPUT, in_out="INPUT", socket_type="NodeSocketBool")
     order.description = ("Grease pencil: in each layer, draw the strokes lying on a part the pose folds over "
                          "another after the others, which keep their order (rebuilds the layers: their blend "
-                         "modes, masks and view-layer filters are not kept, Use Lights is turned off, and layers "
+                         "modes, masks, view-layer filters and parents are not kept, Use Lights is turned off, and layers "
                          "keep only the current frame's drawing, so onion skins vanish). Bind turns it on where "
                          "the drawing uses none of these")
     order.default_value = False

@@ -72,9 +72,10 @@ def stroke_order_losses(obj):
 
     Stroke Order passes the drawings through curves and back (Sort Elements does not sort
     grease-pencil strokes), which makes new layers: opacity, tint, transform, pass index and
-    radius offset are carried over, their lighting, blend modes, masks and view-layer filters
-    are not, and each keeps only the current frame's drawing, so onion skins of its other
-    keyframes vanish from the viewport. Lighting matters only where the object uses lights too
+    radius offset are carried over, their lighting, blend modes, masks, view-layer filters and
+    parents are not (a parented layer would jump to where it is drawn unparented), and each
+    keeps only the current frame's drawing, so onion skins of its other keyframes vanish from
+    the viewport. Lighting matters only where the object uses lights too
     (the 2D Animation template's objects do not).
     """
     layers = list(obj.data.layers)
@@ -84,6 +85,7 @@ def stroke_order_losses(obj):
         ("blend modes of", [layer for layer in layers if layer.blend_mode != "REGULAR"]),
         ("masks of", [layer for layer in layers if layer.use_masks and len(layer.mask_layers)]),
         ("view-layer filters of", [layer for layer in layers if layer.viewlayer_render]),
+        ("parents of", [layer for layer in layers if layer.parent is not None]),
     )
     return [f"{what} " + ", ".join(f"'{layer.name}'" for layer in found) for what, found in checks if found]
 

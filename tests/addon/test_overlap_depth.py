@@ -307,8 +307,8 @@ def monkey_seen_from_the_front():
 
 def test_bind_turns_stroke_order_on_where_the_drawing_loses_nothing_by_it(addon):
     """Stroke Order rebuilds the layers: bind turns it on unless a layer is lit (in a lit
-    object), blended, masked, filtered by view layer or has keyframes to show as onion skins,
-    and the sidebar says what it drops."""
+    object), blended, masked, filtered by view layer, parented or has keyframes to show as
+    onion skins, and the sidebar says what it drops."""
     losses = addon.shapedeform_addon.sources.grease_pencil.stroke_order_losses
 
     def bound(setup):
@@ -343,7 +343,12 @@ def test_bind_turns_stroke_order_on_where_the_drawing_loses_nothing_by_it(addon)
         unlit(obj)
         lines.frames.copy(lines.frames[0].frame_number, 5)  # a second keyframe, shown as an onion skin
 
+    def parented(obj, fills, lines):
+        unlit(obj)
+        lines.parent = bpy.data.objects.new("Parent", None)  # the layer would jump without it
+
     assert bound(blended) == (["blend modes of 'Lines'"], False)
+    assert bound(parented) == (["parents of 'Lines'"], False)
     assert bound(masked) == (["masks of 'Fills'"], False)
     assert bound(filtered) == (["view-layer filters of 'Lines'"], False)
     assert bound(animated) == (["onion skins of 'Lines'"], False)
