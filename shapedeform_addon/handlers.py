@@ -101,6 +101,8 @@ def on_depsgraph_update(scene, depsgraph):
         obj = update.id.original
         if rig_format.is_follower(obj) and not handles.adopt_duplicated(obj):
             rig_format.repair_owner(obj)
+        if rig_format.is_owner(obj) and rig.stale(obj):  # a setting driven or keyed, edited
+            moved[obj.name] = obj
         if not update.is_updated_transform:
             continue
         owner = handles.rig_of(obj)

@@ -137,6 +137,13 @@ def get(obj):
     return rig
 
 
+def stale(obj):
+    """Whether the rig of owner ``obj`` must be rebuilt: never built, or its handles or settings
+    changed since (a driver or keyed value can change them without any update callback)."""
+    cached = _cache.get(obj.original.session_uid)
+    return cached is None or cached.signature != signature(obj.original)
+
+
 def invalidate(obj):
     """Have the cached rig of ``obj`` rebuilt on next use, reusing its coarse copies (handles or
     settings changed; the graph did not)."""

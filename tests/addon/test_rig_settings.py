@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Rig settings reach the solver: Prevent Folds."""
+"""Rig settings reach the solver: Prevent Folds, the iteration budgets, a driven setting."""
 
 import bpy
 import numpy as np
@@ -36,3 +36,34 @@ def test_viewport_and_render_iterations(addon):
     targets = render[deformer.handles]
     converged = deformer.solve(targets, max_iterations=40).positions
     assert np.array_equal(render, converged)
+
+
+def test_a_driven_setting_reposes_when_its_driver_changes(addon, quiet):
+    """A setting driven by a control's custom property: changing the control solves the pose
+    again, as editing the setting does (the settings' own update callbacks never run for a
+    driven value, and the pose stayed the old value's until the next frame change)."""
+    import rig_checks as checks
+
+    obj, _, moved = rig_with_two_handles()
+    moved.location.y += 0.6
+    moved.rotation_euler.z += 1.0
+    control = bpy.data.objects.new("Control", None)
+    bpy.context.scene.collection.objects.link(control)
+    control["detail"] = 0.0
+    driver = obj.driver_add("shapedeform.weight_laplacian").driver
+    variable = driver.variables.new()
+    variable.name, variable.targets[0].id, variable.targets[0].data_path = "detail", control, '["detail"]'
+    driver.expression = "1 + 8 * detail"
+    bpy.context.view_layer.update()
+    before = checks.evaluated_mesh_points(obj).copy()
+
+    control["detail"] = 1.0
+    control.update_tag()
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.weight_laplacian == 9.0
+    driven = checks.evaluated_mesh_points(obj).copy()
+    assert np.abs(driven - before).max() > 1e-3
+    obj.driver_remove("shapedeform.weight_laplacian")
+    obj.shapedeform.weight_laplacian = 9.0  # the same value, set by hand
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), driven, atol=1e-6)
