@@ -7,7 +7,7 @@ frame is done replaces the previous bake. Cancelling or failing half way therefo
 nothing. What it leaves is shape keys on the cage's mesh: the reference key "Basis" holds the
 rest, and each baked frame ``f`` a key ``sd_bake_<f>`` holding that frame's pose, keyed 0 / 1 / 0
 at the frames before, at and after it (linear; the first key has no 0 before it, the last none
-after it). The object's Shape Deform modifier maps its points through the cage whatever moves
+after it; keyed at the animation time each frame shows, which Time Stretching changes). The object's Shape Deform modifier maps its points through the cage whatever moves
 the cage, so a baked file plays and renders with the extension disabled, and every kind of
 object (a grease-pencil drawing the animator adds later too) plays the same bake.
 
@@ -74,7 +74,10 @@ def _remove_keys(cage):
     return removed
 
 
-def _write_keys(cage, frames, captured):
+def _write_keys(cage, frames, captured, times):
+    """Key each captured pose at the animation time its frame showed (``times``, the scene's
+    ``frame_current_final``): playback maps a frame to its time for these keys as for the
+    handles', so with Time Stretching a key at the frame itself would be stretched twice."""
     basis = cage.shape_key_add(name="Basis", from_mix=False)
     # The reference key is the rest, so each baked key shows exactly its pose.
     basis.data.foreach_set("co", rig_format.rest_of(cage).ravel())
@@ -85,8 +88,8 @@ def _write_keys(cage, frames, captured):
         block = cage.shape_key_add(name=key_name(frame), from_mix=False)
         block.data.foreach_set("co", points.ravel())
         path = f'key_blocks["{bpy.utils.escape_identifier(block.name)}"].value'
-        keys = ([(frames[i - 1], 0.0)] if i > 0 else []) + [(frame, 1.0)] + \
-            ([(frames[i + 1], 0.0)] if i + 1 < len(frames) else [])
+        keys = ([(times[i - 1], 0.0)] if i > 0 else []) + [(times[i], 1.0)] + \
+            ([(times[i + 1], 0.0)] if i + 1 < len(frames) else [])
         _add_fcurve(bag, path, *zip(*keys))
 
 
@@ -162,6 +165,7 @@ class Bake:
             raise RigError("Nothing to bake: the frame range is empty")
         self.step_size = int(step)
         self.captured = {obj.name: [] for obj in self.objects}
+        self.times = []  # the animation time each frame showed
         self.done = 0
         self.original_frame = (self.scene.frame_current, self.scene.frame_subframe)
 
@@ -180,6 +184,7 @@ class Bake:
         frame = self.frames[self.done]
         with handlers.paused():
             self.scene.frame_set(frame)
+        self.times.append(self.scene.frame_current_final)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         for obj in self.objects:
             posed = rig.pose(obj, depsgraph, final=True)  # explicitly: a bake does not rely on the handlers
@@ -210,7 +215,7 @@ class Bake:
                 raise RigError(f"'{obj.name}' lost or changed its cage during the bake")
         for obj in self.objects:
             clear(obj)
-            _write_keys(obj.shapedeform.cage, self.frames, self.captured[obj.name])
+            _write_keys(obj.shapedeform.cage, self.frames, self.captured[obj.name], self.times)
             obj.shapedeform[BAKED] = [self.frames[0], self.frames[-1], self.step_size]
         self.captured.clear()
         self._restore_frame()  # show the baked result at the current frame

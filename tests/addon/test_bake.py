@@ -290,6 +290,20 @@ def test_a_rig_left_out_of_the_view_layer_is_refused_or_baked_from_one_that_show
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
 
 
+def test_a_bake_with_time_stretching_plays_as_the_live_rig(addon):
+    """Time Stretching (frame_map_old / frame_map_new) remaps every F-curve at playback, the
+    bake's keys too: each frame's pose is keyed at its stretched time, so the baked frames show
+    what the live rig showed (keyed at the frame itself, they were stretched twice)."""
+    scene = bpy.context.scene
+    scene.render.frame_map_old, scene.render.frame_map_new = 100, 50
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    expected = live(lambda: checks.evaluated_mesh_points(obj))
+    assert np.abs(expected[6] - expected[1]).max() > 0.1
+    assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 6) == [obj]
+    assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
+
+
 def test_binding_locks_the_interface_during_renders(addon):
     scene = bpy.context.scene
     scene.render.use_lock_interface = False
