@@ -139,9 +139,7 @@ def move(context, state, ray):
         return False
     handle = state.handle
     # A handle's location lives in its parent's space (handles are parented to their rig).
-    space = np.eye(4) if handle.parent is None else \
-        _matrix(handle.parent.matrix_world) @ _matrix(handle.matrix_parent_inverse)
-    offset = parent_offset(space, hit - state.start_hit)
+    offset = parent_offset(handles.parent_space(handle), hit - state.start_hit)
     handle.location = tuple(np.asarray(state.start_location) + offset)
     state.moved = True
     # The depsgraph handler poses the shape when it sees the handle's transform change.

@@ -19,6 +19,20 @@ from . import rig as rigs
 from .errors import RigError
 
 
+FOLLOW = "Shape Deform"  # the constraint by which a handle follows a curve with path animation
+
+
+def parent_space(handle):
+    """World matrix (4, 4) of the space a handle's own transform lives in: its parent's, or
+    the object its Child Of constraint follows (a curve with path animation), else the world."""
+    if handle.parent is not None:
+        return np.array(handle.parent.matrix_world, dtype=np.float64) @ np.array(handle.matrix_parent_inverse)
+    follow = handle.constraints.get(FOLLOW)
+    if follow is not None and follow.type == "CHILD_OF" and follow.target is not None:
+        return np.array(follow.target.matrix_world, dtype=np.float64) @ np.array(follow.inverse_matrix)
+    return np.eye(4)
+
+
 def collection(obj):
     """The collection of ``obj``'s rig (handles and cage), made when missing."""
     settings = obj.shapedeform
@@ -90,13 +104,17 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     # A Matrix, not a list: a nested list would be read column by column.
     cage_local = affine_inverse(np.array(obj.matrix_world, dtype=np.float64)) @ world
     if obj.type == "CURVE" and obj.data.use_path:
-        # A curve with path animation carries its children along the path: leave it unparented.
-        empty.matrix_world = Matrix((world @ matrix).tolist())
+        # A curve with path animation carries its children along the path (and a child would
+        # depend on the geometry the rig makes): follow its transform alone, by constraint, as
+        # its cage does.
+        follow = empty.constraints.new("CHILD_OF")
+        follow.name, follow.target = FOLLOW, obj
+        follow.inverse_matrix.identity()
     else:
         empty.parent = obj
         empty.matrix_parent_inverse.identity()
-        # In rig space, which is the object's space until Apply Transform changes the latter.
-        empty.matrix_basis = Matrix((cage_local @ matrix).tolist())
+    # In rig space, which is the object's space until Apply Transform changes the latter.
+    empty.matrix_basis = Matrix((cage_local @ matrix).tolist())
     empty.shapedeform.rig = obj
     item = settings.handles.add()
     item.object = empty

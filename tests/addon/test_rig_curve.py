@@ -115,3 +115,27 @@ def test_curve_with_no_area_is_refused(addon):
     with pytest.raises(RuntimeError, match="no area"):
         bpy.ops.shapedeform.bind()
     assert checks.snapshot() == before and "sd_rest" not in curve
+
+
+def test_a_curve_with_path_animation_moves_with_its_handles(addon, quiet):
+    """Blender's curve primitives have Path Animation on, so the handles cannot be its children
+    (a child would follow the path and depend on the rigged geometry): they follow it by a
+    Child Of constraint, and moving the object moves the posed shape rigidly with its handles
+    (unparented, they stayed behind and pulled the shape back on the next update)."""
+    bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)
+    obj = bpy.context.active_object
+    assert obj.data.use_path  # Blender's default for Add > Curve
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    assert handle.parent is None and handle.constraints[0].type == "CHILD_OF"
+    handle.location.y += 0.4
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_curve_points(obj).copy()
+    obj.location.x += 3.0
+    obj.rotation_euler.z += 0.5
+    bpy.context.view_layer.update()
+    bpy.context.scene.frame_set(2)
+    assert obj.shapedeform.status == ""
+    np.testing.assert_allclose(checks.evaluated_curve_points(obj), posed, atol=1e-5)
+    assert handle.matrix_world.translation.x > 3.0
