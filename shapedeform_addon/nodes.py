@@ -43,7 +43,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 8
+VERSION = 9
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -256,10 +256,13 @@ def _build(group):
     # over itself, the strokes lying on the folded-over part must draw after the ones under it;
     # everywhere else the drawing's own order stands (a face's fill under its eyes, say, even
     # where the face moved further than the eyes). A ray from behind along the plane's normal
-    # through the posed cage finds the lowest layer at each point; the point lies over a fold
-    # when it is higher. A stroke most of whose points lie over a fold sorts after the others,
-    # each group keeping its order (Sort Elements is stable). A stroke the fold laid partly over
-    # itself (a head's fill with its ears) cannot be split, and stays where most of it lies.
+    # through the posed cage finds the lowest layer at each point, one from the front the
+    # highest: the point lies over a fold when it is higher than the lowest, under one when it
+    # is lower than the highest. A stroke most of whose points lie over a fold sorts after the
+    # others, one most of whose points lie under a fold before them (an arm an overlap pin puts
+    # behind a body drawn as one large stroke), each group keeping its order (Sort Elements is
+    # stable). A stroke the fold laid partly over itself (a head's fill with its ears) cannot be
+    # split, and stays where most of it lies.
     cage_size = b.node("ShaderNodeVectorMath", [span], operation="LENGTH").outputs["Value"]  # in its plane
     posed_cage = b.node("GeometryNodeSetPosition", {"Geometry": rest_cage, "Position": posed}).outputs[0]
     height = b.node("ShaderNodeVectorMath", [position, plane_normal], operation="DOT_PRODUCT").outputs["Value"]
@@ -278,13 +281,28 @@ def _build(group):
     higher = b.node("FunctionNodeCompare", {"A": above, "B": margin}, data_type="FLOAT",
                     operation="GREATER_THAN").outputs[0]
     over_fold = b.node("FunctionNodeBooleanMath", [ray.outputs["Is Hit"], higher], operation="AND").outputs[0]
-    # Evaluated at each point as a number, then averaged over the stroke (on the curve domain
-    # alone the test would run once, at the stroke's mean position; as a boolean, the points
-    # would be combined as booleans, not counted).
-    each = b.node("GeometryNodeFieldOnDomain", {"Value": over_fold}, domain="POINT", data_type="FLOAT").outputs[0]
-    share_over = b.node("GeometryNodeFieldOnDomain", {"Value": each}, domain="CURVE", data_type="FLOAT").outputs[0]
-    sort_weight = b.node("FunctionNodeCompare", {"A": share_over, "B": 0.5}, data_type="FLOAT",
-                         operation="GREATER_THAN").outputs[0]
+    down = b.node("ShaderNodeVectorMath", {"Vector": plane_normal, "Scale": -1.0}, operation="SCALE").outputs[0]
+    from_front = b.node("GeometryNodeRaycast", {"Target Geometry": posed_cage,
+                                                "Source Position": b.math("SUBTRACT", position, below),
+                                                "Ray Direction": down, "Ray Length": reach})
+    highest = b.node("ShaderNodeVectorMath", [from_front.outputs["Hit Position"], plane_normal],
+                     operation="DOT_PRODUCT").outputs["Value"]
+    beneath = b.node("ShaderNodeMath", [highest, height], operation="SUBTRACT").outputs[0]
+    lower = b.node("FunctionNodeCompare", {"A": beneath, "B": margin}, data_type="FLOAT",
+                   operation="GREATER_THAN").outputs[0]
+    under_fold = b.node("FunctionNodeBooleanMath", [from_front.outputs["Is Hit"], lower], operation="AND").outputs[0]
+
+    def share(point_test):
+        """The share of each stroke's points passing ``point_test``, over 0.5: evaluated at each
+        point as a number, then averaged over the stroke (on the curve domain alone the test
+        would run once, at the stroke's mean position; as a boolean, the points would be
+        combined as booleans, not counted)."""
+        each = b.node("GeometryNodeFieldOnDomain", {"Value": point_test}, domain="POINT", data_type="FLOAT").outputs[0]
+        mean = b.node("GeometryNodeFieldOnDomain", {"Value": each}, domain="CURVE", data_type="FLOAT").outputs[0]
+        return b.node("FunctionNodeCompare", {"A": mean, "B": 0.5}, data_type="FLOAT",
+                      operation="GREATER_THAN").outputs[0]
+
+    sort_weight = b.node("ShaderNodeMath", [share(over_fold), share(under_fold)], operation="SUBTRACT").outputs[0]
     parts = b.node("GeometryNodeSeparateComponents", [moved.outputs[0]])
     as_curves = b.node("GeometryNodeGreasePencilToCurves", {"Grease Pencil": parts.outputs["Grease Pencil"],
                                                              "Layers as Instances": True}).outputs[0]

@@ -231,6 +231,24 @@ def test_grease_pencil_strokes_over_a_fold_draw_after_the_rest(addon):
     assert list(drawn_order(figure, "Fills")) == [body, arm, eye]
 
 
+def test_a_grease_pencil_overlap_pin_puts_the_arm_in_front_or_behind(addon):
+    """An overlap pin on the figure's arm, folded over its body: at +1 the arm draws last, at
+    -1 first, under the body drawn as one large stroke (which lies mostly outside the fold, so
+    only the arm's being under it can move anything: the arm stayed after the body)."""
+    figure, tip = figure_seen_from_the_front()
+    number_strokes(figure)
+    tip.location.x -= 2.0  # the arm over the body and its eye
+    bpy.context.view_layer.update()
+    bpy.context.view_layer.objects.active = figure
+    assert bpy.ops.shapedeform.add_handle(location=tuple(tip.matrix_world.translation), kind="OVERLAP") == {"FINISHED"}
+    pin = figure.shapedeform.handles[-1].object
+    body, arm, eye = range(3)
+    for amount, order in ((1.0, [body, eye, arm]), (-1.0, [arm, body, eye]), (1.0, [body, eye, arm])):
+        pin.shapedeform.in_front = amount
+        bpy.context.view_layer.update()
+        assert list(drawn_order(figure, "Fills")) == order, amount
+
+
 def figure_seen_from_the_front():
     """A grease-pencil figure drawn in XZ, unlit, seen from the front: a red body, a white eye
     drawn on it, and a blue arm (its own stroke) reaching out to the right; bound, with handles
