@@ -186,9 +186,20 @@ class Bake:
             self.scene.frame_set(frame)
         self.times.append(self.scene.frame_current_final)
         depsgraph = bpy.context.evaluated_depsgraph_get()
+        posed = {obj.name: rig.pose(obj, depsgraph, final=True) for obj in self.objects}  # not via the handlers
+        # A rig whose handles follow another rig's shape (a hat pinned to a deformed head) sees
+        # that shape's new pose only once the depsgraph has evaluated it: evaluate, and pose again
+        # the rigs whose handles moved, once per link of such a chain.
+        for _ in range(len(self.objects) - 1):
+            before = {obj.name: rig.handle_frames(obj, depsgraph) for obj in self.objects}
+            with handlers.paused():
+                depsgraph.update()
+            moved = [obj for obj in self.objects if not np.array_equal(rig.handle_frames(obj, depsgraph), before[obj.name])]
+            if not moved:
+                break
+            posed.update((obj.name, rig.pose(obj, depsgraph, final=True)) for obj in moved)
         for obj in self.objects:
-            posed = rig.pose(obj, depsgraph, final=True)  # explicitly: a bake does not rely on the handlers
-            self.captured[obj.name].append(posed.cage_points(posed.posed))
+            self.captured[obj.name].append(posed[obj.name].cage_points(posed[obj.name].posed))
         self.done += 1
         return self.done == self.total
 

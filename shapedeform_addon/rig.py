@@ -165,6 +165,11 @@ def final_quality():
     return bpy.app.background or bpy.app.is_job_running("RENDER")
 
 
+def handle_frames(obj, depsgraph=None):
+    """The handles' 2D frames (h, 3, 3) of ``obj``'s rig as ``depsgraph`` evaluated them."""
+    return get(obj).frames(rig_format.owner_of(obj.original), depsgraph)
+
+
 def pose(obj, depsgraph=None, final=None):
     """Solve for the handles' current transforms and write the pose into the owner's cage.
 

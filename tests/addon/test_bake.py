@@ -304,6 +304,34 @@ def test_a_bake_with_time_stretching_plays_as_the_live_rig(addon):
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
 
 
+def test_a_rig_whose_handle_follows_another_rigs_shape_bakes_on_the_same_frame(addon):
+    """Rig B's handle follows a point of rigged object A's deformed shape (a hat pinned to a
+    head, here by Copy Location to A's vertex group): each baked frame of B is posed from A's
+    pose at that frame (B was baked from A's pose at the frame before: one frame late)."""
+    first = grid("A")
+    rig(first, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.6, 0.0))
+    second = grid("B")
+    second.location.y += 2.0
+    bpy.context.view_layer.update()
+    bpy.context.view_layer.objects.active = second
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(second, checks.world(second, [-1.0, 0.0, 0.0]))
+    pinned = checks.add_handle(second, checks.world(second, [1.0, 0.0, 0.0]))
+    tip = int(np.argmax(checks.mesh_points(first)[:, 0]))
+    first.vertex_groups.new(name="tip").add([tip], 1.0, "REPLACE")
+    follow = pinned.constraints.new("COPY_LOCATION")
+    follow.target, follow.subtarget = first, "tip"
+    scene = bpy.context.scene
+    expected = {}
+    for frame in FRAMES:
+        scene.frame_set(frame)
+        scene.frame_set(frame)  # twice: the second pass poses B from A's new shape
+        expected[frame] = checks.evaluated_mesh_points(second).copy()
+    assert np.abs(expected[6] - expected[1]).max() > 0.1
+    assert addon.shapedeform_addon.bake.bake_objects([first, second], 1, 6) == [first, second]
+    assert_plays_without_extension(lambda: checks.evaluated_mesh_points(second), expected)
+
+
 def test_binding_locks_the_interface_during_renders(addon):
     scene = bpy.context.scene
     scene.render.use_lock_interface = False
