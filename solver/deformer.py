@@ -156,7 +156,12 @@ class Deformer:
             # as firmly as one at the reference spacing (the penalty scales with rest area, so
             # its weight goes up as the spacing's square goes down).
             fold_weight = options.fold_weight * self.energy.spacing_ratio ** 2
-            self._folds = FoldPenalty(graph, unknowns, options.fold_threshold, fold_weight, options.sliver_area)
+            # Beside a handle at least ``fold_weight_at_handles`` times the reference push: on a
+            # dense graph the spacing's factor already holds every triangle more firmly than that.
+            at_handles = max(1.0, options.fold_weight_at_handles * options.fold_weight / fold_weight) \
+                if fold_weight > 0 else 1.0
+            self._folds = FoldPenalty(graph, unknowns, options.fold_threshold, fold_weight, options.sliver_area,
+                                      at_handles)
         triangles = graph.triangles if self._folds is not None else None
 
         # A graph at the default spacing keeps the paper's energy and its solves their path bit

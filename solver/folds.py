@@ -9,7 +9,10 @@ a pose that squeezes no triangle that far is a minimum of the paper's energy unc
 bends it holds the folds open at a small price in energy.
 
 ``w`` is the push at zero area: a triangle's term falls by ``w a0`` per unit of ``r`` as it
-reopens from ``r = 0``, and more steeply as it turns further inside out. The cube makes the
+reopens from ``r = 0``, and more steeply as it turns further inside out. Triangles with a corner
+held by a handle get ``Options.fold_weight_at_handles`` times ``w`` (3): a handle region moves
+rigidly, and the free points beside it take the squeeze its turn concentrates there (the folds
+the penalty left at the paper's size were all of such triangles). The cube makes the
 penalty's curvature grow from zero at the threshold, so the Newton model has no jump there: a
 quadratic penalty (``t = 0.1``, with ``w`` giving the same push) put a stiff wall at its
 threshold, and solves that pressed on it crawled along it for tens of iterations. The
@@ -80,9 +83,12 @@ class FoldPenalty:
         The deformer's split into free and fixed points.
     threshold, weight, sliver_area : float
         ``Options.fold_threshold``, ``Options.fold_weight`` and ``Options.sliver_area``.
+    at_handles : float
+        ``Options.fold_weight_at_handles``: the factor on ``weight`` for triangles with a corner
+        held by a handle.
     """
 
-    def __init__(self, graph, unknowns, threshold, weight, sliver_area):
+    def __init__(self, graph, unknowns, threshold, weight, sliver_area, at_handles=1.0):
         triangles = graph.triangles
         count = len(triangles)
         ones = np.ones(count)
@@ -102,6 +108,9 @@ class FoldPenalty:
         longest = np.einsum("tkc,tkc->tk", sides, sides).max(axis=1, initial=0.0)
         stiffness_area = np.maximum(rest_area, sliver_area * longest)
         self._scale = weight / (3.0 * threshold ** 2 * np.where(rest_area > 0, stiffness_area, np.inf) ** 2)
+        held = np.zeros(graph.n, dtype=bool)
+        held[unknowns.fixed] = True
+        self._scale[held[triangles].any(axis=1)] *= at_handles
         self._floor = threshold * rest_area
         self.triangles = triangles
 

@@ -73,6 +73,11 @@ class Options:
         density normalisation a graph denser than the default spacing multiplies it by the
         square of the spacings' ratio, so each triangle is held open as firmly as one at the
         default spacing.
+    fold_weight_at_handles : float
+        Triangles with a corner held by a handle, where a handle region's rigid motion squeezes
+        the free points beside it hardest, are held open at least this many times as firmly as
+        ``fold_weight`` holds a triangle at the default spacing (on denser graphs, whose
+        weight the spacing already raises more, nothing changes).
     sliver_area : float
         Area per squared longest edge below which a triangle counts as a sliver, whose fold
         stiffness is bounded.
@@ -95,6 +100,7 @@ class Options:
     max_fold_terms: int = 32
     fold_threshold: float = 0.4
     fold_weight: float = 20.0
+    fold_weight_at_handles: float = 3.0
     sliver_area: float = 0.05
 
     def __post_init__(self):
