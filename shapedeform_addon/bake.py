@@ -7,9 +7,10 @@ frame is done replaces the previous bake. Cancelling or failing half way therefo
 nothing. What it leaves is shape keys on the cage's mesh: the reference key "Basis" holds the
 rest, and each baked frame ``f`` a key ``sd_bake_<f>`` holding that frame's pose, keyed 0 / 1 / 0
 at the frames before, at and after it (linear; the first key has no 0 before it, the last none
-after it; keyed at the animation time each frame shows, which Time Stretching changes). The object's Shape Deform modifier maps its points through the cage whatever moves
-the cage, so a baked file plays and renders with the extension disabled, and every kind of
-object (a grease-pencil drawing the animator adds later too) plays the same bake.
+after it; keyed at the animation time each frame shows, which Time Stretching changes). The
+object's Shape Deform modifier maps its points through the cage whatever moves the cage, so a
+baked file plays and renders with the extension disabled, and every kind of object (a
+grease-pencil drawing the animator adds later too) plays the same bake.
 
 Outside the baked range the cage holds the nearest baked frame (the first before the range, the
 last after it), as keyed animation holds its first and last key.

@@ -101,7 +101,6 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     empty.empty_display_type = "CIRCLE"
     empty.empty_display_size = radius
     collection(obj).objects.link(empty)
-    # A Matrix, not a list: a nested list would be read column by column.
     cage_local = affine_inverse(np.array(obj.matrix_world, dtype=np.float64)) @ world
     if obj.type == "CURVE" and obj.data.use_path:
         # A curve with path animation carries its children along the path (and a child would
@@ -113,7 +112,8 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     else:
         empty.parent = obj
         empty.matrix_parent_inverse.identity()
-    # In rig space, which is the object's space until Apply Transform changes the latter.
+    # In rig space, which is the object's space until Apply Transform changes the latter. A
+    # Matrix, not a list: a nested list would be read column by column.
     empty.matrix_basis = Matrix((cage_local @ matrix).tolist())
     empty.shapedeform.rig = obj
     item = settings.handles.add()

@@ -18,10 +18,12 @@ On the bound object (the rig's *owner*), ``obj.shapedeform``:
 The cage, a mesh object parented to the owner (or copying its transform) and hidden:
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
     space when it was bound), its point attribute ``sd_rest`` the rest, ``shapedeform.rig``
-    the owner. A bake is shape keys on its mesh (:mod:`.bake`).
+    the owner. A bake is shape keys on its mesh, its Key marked ``shapedeform_bake``
+    (:mod:`.bake`). In a library override of a rigged character the cage's mesh is a local
+    copy of the library's, made the first time the rig poses.
 Every object the rig deforms (the owner, and duplicates of it):
     a Geometry Nodes modifier with the group of :mod:`.nodes`, whose inputs name the cage,
-    the owner and the layer attribute.
+    the owner, the handle collection and the layer attribute.
 
 A duplicate of the owner (Shift+D, Alt+D) copies its settings and modifier: it *follows* the
 owner's rig (same cage, same handles) and is never posed on its own.
