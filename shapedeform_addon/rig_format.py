@@ -303,3 +303,9 @@ def is_baked(obj):
 def owners(scene):
     """Rig owners in ``scene``."""
     return [o for o in scene.objects if is_owner(o)]
+
+
+def evaluated_owners(depsgraph):
+    """Rig owners (originals) that ``depsgraph`` evaluates: its scene's, and those of
+    collections it instances from elsewhere."""
+    return [i.original for i in depsgraph.ids if isinstance(i, bpy.types.Object) and is_owner(i.original)]

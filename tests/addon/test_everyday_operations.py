@@ -883,3 +883,39 @@ def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon,
     obj = next(o for o in bpy.context.scene.objects if o.name == "Grid")
     assert addon.shapedeform_addon.rig_format.is_baked(obj)
     assert_plays_without_extension(lambda: evaluated(obj), expected, frames=(1, 6))
+
+
+# -- a rigged character instanced in another scene --------------------------------------------
+
+def test_a_collection_instanced_in_another_scene_follows_its_handles(addon, tmp_path, quiet):
+    """A rigged character's collection shown in a shot scene by a Collection Instance poses
+    there on every frame (only rigs directly in the scene were posed: the instance stayed at
+    rest, 0.8 from its pose)."""
+    character = bpy.data.collections.new("Character")
+    bpy.context.scene.collection.children.link(character)
+    obj = make_mesh(tmp_path)
+    for collection in obj.users_collection:
+        collection.objects.unlink(obj)
+    character.objects.link(obj)
+    rig = Rigged(obj)
+    scene = bpy.context.scene
+    rig.second.keyframe_insert("location", frame=1)
+    rig.second.location.y += 0.8
+    rig.second.keyframe_insert("location", frame=10)
+    scene.frame_set(10)
+    posed = evaluated(obj).copy()
+    scene.frame_set(1)
+
+    shot = bpy.data.scenes.new("Shot")
+    instance = bpy.data.objects.new("Character Instance", None)
+    instance.instance_type, instance.instance_collection = "COLLECTION", character
+    shot.collection.objects.link(instance)
+    bpy.context.window.scene = shot
+    shot.frame_set(10)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    shown = [item.object for item in depsgraph.object_instances if item.is_instance and item.object.original == obj]
+    assert shown
+    mesh = shown[0].to_mesh()
+    points = np.array([v.co for v in mesh.vertices])
+    shown[0].to_mesh_clear()
+    np.testing.assert_allclose(points, posed, atol=1e-5)
