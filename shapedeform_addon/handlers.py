@@ -122,17 +122,36 @@ def on_frame_change(scene, depsgraph):
 
 
 @persistent
-def on_load(*_args):
-    """A file was opened: rigs are rebuilt lazily from the data saved in it."""
+def on_undo(*_args):
+    """Undo or redo: rigs are rebuilt lazily from the data of the step restored."""
     rig.forget()
+
+
+@persistent
+def on_load(*_args):
+    """A file was opened: rigs are rebuilt from the data saved in it, duplicates are pointed
+    at their rig and every rig of the scene is posed, so a file edited while the extension was
+    disabled (a handle moved, an object duplicated) shows what its handles say at once."""
+    rig.forget()
+    sync_scene()
+
+
+def sync_scene():
+    """Repair duplicates and pose the current scene's rigs (a file opened, the extension enabled)."""
+    for obj in bpy.data.objects:
+        if rig_format.is_follower(obj) and not handles.adopt_duplicated(obj):
+            rig_format.repair_owner(obj)
+    scene = bpy.context.scene
+    if scene is not None:
+        _pose([o for o in rig_format.owners(scene) if o.shapedeform.handles], bpy.context.evaluated_depsgraph_get())
 
 
 _HANDLERS = (
     ("depsgraph_update_post", on_depsgraph_update),
     ("frame_change_post", on_frame_change),
     ("load_post", on_load),
-    ("undo_post", on_load),
-    ("redo_post", on_load),
+    ("undo_post", on_undo),
+    ("redo_post", on_undo),
 )
 
 classes = ()
@@ -141,11 +160,20 @@ classes = ()
 def register():
     for name, function in _HANDLERS:
         getattr(bpy.app.handlers, name).append(function)
+    # Enabled in an open file (Preferences): once Blender is idle, as data cannot be written
+    # while add-ons register (without a window loop the timer never runs, nor needs to).
+    bpy.app.timers.register(_sync_once, first_interval=0.0)
+
+
+def _sync_once():
+    sync_scene()
+    return None  # once
 
 
 def unregister():
-    if bpy.app.timers.is_registered(refine):
-        bpy.app.timers.unregister(refine)
+    for timer in (refine, _sync_once):
+        if bpy.app.timers.is_registered(timer):
+            bpy.app.timers.unregister(timer)
     for name, function in _HANDLERS:
         functions = getattr(bpy.app.handlers, name)
         if function in functions:

@@ -919,3 +919,46 @@ def test_a_collection_instanced_in_another_scene_follows_its_handles(addon, tmp_
     points = np.array([v.co for v in mesh.vertices])
     shown[0].to_mesh_clear()
     np.testing.assert_allclose(points, posed, atol=1e-5)
+
+
+def test_edits_made_while_the_extension_was_disabled_show_on_enable_and_on_open(addon, tmp_path, quiet):
+    """With the extension disabled the animator moves a handle and duplicates the object, and
+    saves. Enabled again (the timer's pass) and reopened, the owner shows its handles' pose and
+    the copy follows it in its own place (both kept the stale pose until a handle moved)."""
+    from conftest import ADDON_MODULE
+    import addon_utils
+
+    obj = make_mesh(tmp_path)
+    obj.name = "Shape"
+    rig = Rigged(obj)
+    rig.move(0.3)
+    addon_utils.disable(ADDON_MODULE, default_set=True)
+    try:
+        rig.move(0.4)
+        for o in bpy.context.selected_objects:
+            o.select_set(False)
+        obj.select_set(True)
+        bpy.context.view_layer.objects.active = obj
+        assert bpy.ops.object.duplicate() == {"FINISHED"}
+        copy = bpy.context.active_object
+        copy.location.x += 3.0
+        names = obj.name, copy.name
+        path = str(tmp_path / "edited.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=path)
+    finally:
+        addon_utils.enable(ADDON_MODULE, default_set=True)
+
+    def check():
+        obj, copy = (bpy.data.objects[name] for name in names)
+        shown = evaluated(obj).copy()
+        np.testing.assert_allclose(evaluated(copy), shown, atol=1e-6)
+        addon.shapedeform_addon.rig.forget()
+        addon.shapedeform_addon.rig.pose(obj)
+        bpy.context.view_layer.update()
+        np.testing.assert_allclose(evaluated(obj), shown, atol=1e-6)
+
+    addon.shapedeform_addon.handlers.sync_scene()  # what the timer does once Blender is idle
+    bpy.context.view_layer.update()
+    check()
+    bpy.ops.wm.open_mainfile(filepath=path)
+    check()
