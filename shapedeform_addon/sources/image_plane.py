@@ -43,6 +43,9 @@ def is_image_plane(obj):
             and data.uv_layers.active is not None and _image(obj) is not None)
 
 
+CUTOUT_KEY = "cutout_points"  # on the settings: the cut-out's vertices as bind made them
+
+
 def prepare(obj, settings):
     quad = obj.data
     image = _image(obj)
@@ -76,6 +79,7 @@ def prepare(obj, settings):
             cutout.materials.append(material)
         cutout.update()
         o.shapedeform.original_data = quad
+        o.shapedeform[CUTOUT_KEY] = vertices.astype(np.float32).ravel()  # to tell, at unbind, whether it was edited
         o.data = cutout
 
     return Prepared(plane, graph, commit)
@@ -90,6 +94,9 @@ def unbind(obj):
         return []
     applied = rig_format.rig_to_object(obj)
     cutout = obj.data
+    lost = [] if _as_bound(obj, cutout, applied) else \
+        ["the Edit Mode edits of its cut-out (the picture's quad is back; Undo brings them back)"]
+    obj.shapedeform.pop(CUTOUT_KEY, None)
     obj.data = original
     obj.shapedeform.original_data = None
     if not np.allclose(applied, np.eye(4), rtol=0.0, atol=1e-6):
@@ -99,7 +106,20 @@ def unbind(obj):
         obj.data.update()
     if cutout.users == 0:
         bpy.data.meshes.remove(cutout)
-    return []
+    return lost
+
+
+def _as_bound(obj, cutout, applied):
+    """Whether the cut-out still has the vertices bind made (moved only by an applied transform)."""
+    if CUTOUT_KEY not in obj.shapedeform:
+        return True  # bound by a version that did not keep them
+    bound = np.asarray(obj.shapedeform[CUTOUT_KEY], dtype=np.float64).reshape(-1, 3)
+    if len(bound) != len(cutout.vertices):
+        return False
+    now = np.empty(len(cutout.vertices) * 3, dtype=np.float32)
+    cutout.vertices.foreach_get("co", now)
+    expected = bound @ applied[:3, :3].T + applied[:3, 3]
+    return bool(np.allclose(now.reshape(-1, 3), expected, rtol=0.0, atol=1e-5 * max(np.ptp(bound, axis=0).max(), 1e-9)))
 
 
 def restore_legacy(obj):

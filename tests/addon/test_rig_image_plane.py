@@ -82,3 +82,28 @@ def test_image_plane_becomes_a_cutout_that_maps_the_image_exactly(addon, tmp_pat
     assert len(obj.data.vertices) == 4 and obj.shapedeform.original_data is None
     assert checks.mesh_points(obj).tobytes() == quad_points.tobytes()
     assert len(bpy.data.meshes) == 1 and len(bpy.data.objects) == 1
+
+
+def test_unbind_says_when_it_drops_edits_made_to_the_cut_out(addon, tmp_path):
+    """Unbind gives the image plane's quad back; where the cut-out was edited in Edit Mode, it
+    says the edits go with it (they went silently). An applied rotation and scale is not an edit."""
+    import bmesh
+
+    obj, _ = import_picture(tmp_path)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    obj.rotation_euler.z = 0.4
+    obj.scale = (2.0, 2.0, 2.0)
+    assert bpy.ops.object.transform_apply(location=False, rotation=True, scale=True) == {"FINISHED"}
+    binding = addon.shapedeform_addon.binding
+    assert binding.unbind(obj) == []
+
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="EDIT")
+    edited = bmesh.from_edit_mesh(obj.data)
+    bmesh.ops.delete(edited, geom=list(edited.verts)[: len(edited.verts) // 2], context="VERTS")
+    bmesh.update_edit_mesh(obj.data)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    lost = binding.unbind(obj)
+    assert len(lost) == 1 and "edits of its cut-out" in lost[0]
+    assert len(obj.data.vertices) == 4  # the quad is back
