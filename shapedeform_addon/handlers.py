@@ -114,11 +114,11 @@ def on_depsgraph_update(scene, depsgraph):
 
 @persistent
 def on_frame_change(scene, depsgraph):
-    """Frames changed: animated handles have new transforms (of every rig the depsgraph
-    evaluates, a collection instanced from another scene's included)."""
+    """Frames changed: animated handles have new transforms (of every rig the scene shows, a
+    collection it instances from elsewhere included)."""
     if _busy:
         return
-    _pose([o for o in rig_format.evaluated_owners(depsgraph) if o.shapedeform.handles], depsgraph)
+    _pose([o for o in rig_format.owners(scene) if o.shapedeform.handles], depsgraph)
 
 
 @persistent

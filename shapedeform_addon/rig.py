@@ -138,10 +138,11 @@ def get(obj):
 
 
 def stale(obj):
-    """Whether the rig of owner ``obj`` must be rebuilt: never built, or its handles or settings
-    changed since (a driver or keyed value can change them without any update callback)."""
+    """Whether the cached rig of owner ``obj`` no longer fits its handles or settings (a driver
+    or keyed value can change them without any update callback). A rig not cached (none built
+    yet, or dropped by undo) is not stale: it is built when something poses it."""
     cached = _cache.get(obj.original.session_uid)
-    return cached is None or cached.signature != signature(obj.original)
+    return cached is not None and cached.signature != signature(obj.original)
 
 
 def invalidate(obj):

@@ -85,12 +85,13 @@ def clear_graph(settings):
 # -- handles ----------------------------------------------------------------------------------
 
 def present(handle):
-    """A handle Empty that still exists in a scene.
+    """A handle Empty that still exists in a collection.
 
     Deleting an object in the viewport only unlinks it: the handle's pointer keeps it alive
-    as an orphan, so "deleted by hand" means "in no scene".
+    as an orphan, so "deleted by hand" means "in no collection" (a character's collection
+    shown only by a Collection Instance is in no scene, and its handles are there all the same).
     """
-    return handle is not None and len(handle.users_scene) > 0
+    return handle is not None and len(handle.users_collection) > 0
 
 
 def handle_items(obj):
@@ -137,8 +138,11 @@ def make_cage(obj, plane, graph, collection):
 
 
 def write_pose(cage, points):
-    """Write the pose (n, 3) float32 into the cage; False when a bake holds it (shape keys)."""
+    """Write the pose (n, 3) float32 into the cage; False when a bake holds it (shape keys) or
+    the cage is library data."""
     mesh = cage.data
+    if cage.library is not None:
+        return False  # library data: nothing here can change it
     if mesh.library is not None:
         # A library override of a rigged character: its cage's mesh is the library's, which
         # nothing here can change. The cage takes a local copy, its own from now on.
@@ -301,11 +305,17 @@ def is_baked(obj):
 
 
 def owners(scene):
-    """Rig owners in ``scene``."""
-    return [o for o in scene.objects if is_owner(o)]
+    """Rig owners that ``scene`` shows: its objects, and those of the collections its objects
+    instance (a character shown in a shot by a Collection Instance). Linked rigs (library data
+    without an override) are left out: nothing here can pose them (a bake in their own file can)."""
+    found = []
+    for obj in scene.objects:
+        if obj.instance_type == "COLLECTION" and obj.instance_collection is not None:
+            found.extend(o for o in obj.instance_collection.all_objects if _posable_owner(o))
+        if _posable_owner(obj):
+            found.append(obj)
+    return list(dict.fromkeys(found))  # shown twice, posed once
 
 
-def evaluated_owners(depsgraph):
-    """Rig owners (originals) that ``depsgraph`` evaluates: its scene's, and those of
-    collections it instances from elsewhere."""
-    return [i.original for i in depsgraph.ids if isinstance(i, bpy.types.Object) and is_owner(i.original)]
+def _posable_owner(obj):
+    return is_owner(obj) and obj.library is None

@@ -111,8 +111,8 @@ def unbind(obj):
 
 def _as_bound(obj, cutout, applied):
     """Whether the cut-out still has the vertices bind made (moved only by an applied transform)."""
-    if CUTOUT_KEY not in obj.shapedeform:
-        return True  # bound by a version that did not keep them
+    if CUTOUT_KEY not in obj.shapedeform or obj.shapedeform.cage is None:
+        return True  # bound by a version that did not keep them, or no cage to tell what was applied
     bound = np.asarray(obj.shapedeform[CUTOUT_KEY], dtype=np.float64).reshape(-1, 3)
     if len(bound) != len(cutout.vertices):
         return False
