@@ -75,11 +75,12 @@ def unbind(obj):
     Raises
     ------
     RigError
-        ``obj`` is not bound; nothing was changed.
+        ``obj`` is not bound, or its rig is a library's; nothing was changed.
     """
     settings = obj.shapedeform
     if not settings.is_bound:
         raise RigError(f"'{obj.name}' is not bound")
+    rig_format.require_local(obj, "unbind it")
     # Only a rig made by an older version has rest points to give back. A modern rig without a
     # cage (a duplicate whose rig's owner was unbound, or a cage deleted by hand) never wrote
     # the object's data: there is nothing to restore.

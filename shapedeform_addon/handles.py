@@ -69,6 +69,7 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     settings = obj.shapedeform
     if not settings.is_bound:
         raise RigError(f"'{obj.name}' is not bound: bind it first")
+    rig_format.require_local(obj, "add handles")
     rig = rigs.get(obj)
     world = rig_format.rig_space(obj)
     if np.linalg.matrix_rank(world[:3, :3] @ rig.plane.axes[:2].T) < 2:
@@ -204,7 +205,9 @@ def remove(obj, empties):
 
     Only Empties ``obj`` owns (:func:`owns`) are deleted; an entry pointing at another rig's
     handle is only dropped from the list, so unbinding a duplicate never breaks the original.
+    RigError for a library's rig (nothing is changed).
     """
+    rig_format.require_local(obj, "remove handles")
     settings = obj.shapedeform
     removed = 0
     for i in reversed(range(len(settings.handles))):

@@ -53,7 +53,11 @@ class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
         if obj.mode != "OBJECT":
             bpy.ops.object.mode_set(mode="OBJECT")
         owner = rig_format.owner_of(obj)
-        lost = binding.unbind(obj)
+        try:
+            lost = binding.unbind(obj)
+        except RigError as err:
+            self.report({"ERROR"}, str(err))
+            return {"CANCELLED"}
         if lost:
             self.report({"WARNING"}, f"Unbound '{obj.name}', but could not give back {'; '.join(lost)}")
         elif owner is not None and owner != obj:
@@ -106,7 +110,8 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
                 added.append(handles.add(obj, location, kind=self.kind,
                                          on_rest=was_edit and not self.properties.is_property_set("location")))
         except RigError as err:
-            handles.remove(obj, set(added))  # all or nothing
+            if added:
+                handles.remove(obj, set(added))  # all or nothing
             if was_edit:
                 bpy.ops.object.mode_set(mode="EDIT")
             self.report({"ERROR"}, str(err))
@@ -136,6 +141,12 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
             self.report({"ERROR"}, "Select the handles to remove")
             return {"CANCELLED"}
         owners = {handles.rig_of(o) for o in selected}
+        for owner in owners:
+            try:
+                rig_format.require_local(owner, "remove handles")
+            except RigError as err:
+                self.report({"ERROR"}, str(err))
+                return {"CANCELLED"}
         for owner in owners:
             handles.remove(owner, set(selected))
             rig.pose_safely(owner, context.evaluated_depsgraph_get())

@@ -293,6 +293,16 @@ def rig_to_object(obj):
     return affine_inverse(np.array(obj.matrix_world, dtype=np.float64)) @ rig_space(obj)
 
 
+def require_local(obj, action):
+    """Raise RigError when ``obj``'s rig is a library's (linked, or a library override, whose
+    handle list and collections the library holds): ``action`` (a phrase) is done there."""
+    if obj.library is None and obj.override_library is None:
+        return
+    library = obj.library or obj.override_library.reference.library
+    raise RigError(f"'{obj.name}' comes from the library '{library.name}': {action} in that file "
+                   "(here its handles move and key, and it bakes)")
+
+
 def is_baked(obj):
     """Whether the owner ``obj`` plays a bake (the live rig then leaves it alone). The cage's
     shape keys say so too: a library override keeps them with its local cage mesh, but not the

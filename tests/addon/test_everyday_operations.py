@@ -877,6 +877,21 @@ def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon,
     assert obj.override_library is not None
     handle = obj.shapedeform.handles[1].object
     assert handle.override_library is not None
+    # Its handle list and collections are the library's: changing the rig is refused by name,
+    # and nothing changes (Unbind stopped half way, and Add Handle left an Empty behind).
+    objects, count = set(bpy.data.objects), len(obj.shapedeform.handles)
+    bpy.context.view_layer.objects.active = obj
+    for refused in (lambda: bpy.ops.shapedeform.add_handle(location=(0.5, -1.0, 0.25)),
+                    lambda: bpy.ops.shapedeform.unbind()):
+        with pytest.raises(RuntimeError, match="comes from the library 'character.blend'"):
+            refused()
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    handle.select_set(True)
+    with pytest.raises(RuntimeError, match="comes from the library"):
+        bpy.ops.shapedeform.remove_handle()
+    assert set(bpy.data.objects) == objects and len(obj.shapedeform.handles) == count
+    assert obj.shapedeform.is_bound and obj.modifiers
     handle.keyframe_insert("location", frame=1)
     handle.location.y += 0.5
     handle.keyframe_insert("location", frame=6)
