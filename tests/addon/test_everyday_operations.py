@@ -848,6 +848,17 @@ def test_handles_drive_the_shape_wherever_their_collection_is_hidden(addon, hide
 
 # -- a library override of a rigged character ------------------------------------------------------
 
+def character_collection(tmp_path):
+    """A grid alone in a collection "Character" of the scene: (collection, grid)."""
+    character = bpy.data.collections.new("Character")
+    bpy.context.scene.collection.children.link(character)
+    obj = make_mesh(tmp_path)
+    for collection in obj.users_collection:
+        collection.objects.unlink(obj)
+    character.objects.link(obj)
+    return character, obj
+
+
 def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon, tmp_path, quiet):
     """The usual way to animate a linked character: link its collection into a shot, make a
     library override, move and key its handles, bake on the farm. The rig poses (its cage takes
@@ -856,12 +867,7 @@ def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon,
     nothing, and its bake was lost, when the pose was written into the library's mesh)."""
     from test_bake import assert_plays_without_extension
 
-    character = bpy.data.collections.new("Character")
-    bpy.context.scene.collection.children.link(character)
-    obj = make_mesh(tmp_path)
-    for collection in obj.users_collection:
-        collection.objects.unlink(obj)
-    character.objects.link(obj)
+    _, obj = character_collection(tmp_path)
     Rigged(obj)
     library = str(tmp_path / "character.blend")
     bpy.ops.wm.save_as_mainfile(filepath=library)
@@ -935,12 +941,7 @@ def test_a_collection_instanced_in_another_scene_follows_its_handles(addon, only
     there on every frame, also when the collection is in no scene itself (only rigs directly
     in the scene were posed: the instance stayed at rest, 0.8 from its pose; and handles in no
     scene counted as deleted)."""
-    character = bpy.data.collections.new("Character")
-    bpy.context.scene.collection.children.link(character)
-    obj = make_mesh(tmp_path)
-    for collection in obj.users_collection:
-        collection.objects.unlink(obj)
-    character.objects.link(obj)
+    character, obj = character_collection(tmp_path)
     rig = Rigged(obj)
     scene = bpy.context.scene
     rig.second.keyframe_insert("location", frame=1)
@@ -1009,12 +1010,7 @@ def test_a_linked_character_instanced_in_a_shot_is_left_as_the_library_has_it(ad
     Instance: nothing here can pose it, so its cage stays the library's (the frame handler
     posed it from handles it took for deleted and swapped the library's cage mesh for a local
     copy at rest)."""
-    character = bpy.data.collections.new("Character")
-    bpy.context.scene.collection.children.link(character)
-    obj = make_mesh(tmp_path)
-    for collection in obj.users_collection:
-        collection.objects.unlink(obj)
-    character.objects.link(obj)
+    _, obj = character_collection(tmp_path)
     rig = Rigged(obj)
     rig.move(0.5)
     posed = evaluated(obj).copy()
