@@ -264,6 +264,10 @@ def bake_objects(objects, frame_start, frame_end, step=1, *, scene=None, progres
     RigError
         An object cannot be baked, or a frame could not be posed; nothing was written.
     """
+    if scene is not None and scene != bpy.context.scene:
+        # Frames are posed from the context's depsgraph: make it the scene's.
+        with bpy.context.temp_override(scene=scene):
+            return bake_objects(objects, frame_start, frame_end, step, progress=progress, cancelled=cancelled)
     baker = Bake(objects, frame_list(frame_start, frame_end, step), step, scene)
     try:
         finished = False

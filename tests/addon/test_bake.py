@@ -332,6 +332,21 @@ def test_a_rig_whose_handle_follows_another_rigs_shape_bakes_on_the_same_frame(a
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(second), expected)
 
 
+def test_the_python_entry_point_bakes_the_scene_it_is_given(addon):
+    """``bake_objects(..., scene=X)`` with another scene active poses X's frames from X's
+    depsgraph (it read the active scene's, where the rig is not evaluated)."""
+    shown = bpy.context.scene
+    shot = bpy.data.scenes.new("Shot")
+    bpy.context.window.scene = shot
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    expected = live(lambda: checks.evaluated_mesh_points(obj))
+    bpy.context.window.scene = shown
+    assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 6, scene=shot) == [obj]
+    bpy.context.window.scene = shot
+    assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
+
+
 def test_binding_locks_the_interface_during_renders(addon):
     scene = bpy.context.scene
     scene.render.use_lock_interface = False
