@@ -99,8 +99,7 @@ def on_depsgraph_update(scene, depsgraph):
         if not isinstance(update.id, bpy.types.Object):
             continue
         obj = update.id.original
-        if rig_format.is_follower(obj) and not handles.adopt_duplicated(obj):
-            rig_format.repair_owner(obj)
+        handles.settle_duplicate(obj)
         if rig_format.is_owner(obj) and rig.stale(obj):  # a setting driven or keyed, edited
             moved[obj.name] = obj
         if not update.is_updated_transform:
@@ -139,8 +138,7 @@ def on_load(*_args):
 def sync_scene():
     """Repair duplicates and pose the current scene's rigs (a file opened, the extension enabled)."""
     for obj in bpy.data.objects:
-        if rig_format.is_follower(obj) and not handles.adopt_duplicated(obj):
-            rig_format.repair_owner(obj)
+        handles.settle_duplicate(obj)
     scene = bpy.context.scene
     if scene is not None:
         _pose([o for o in rig_format.owners(scene) if o.shapedeform.handles], bpy.context.evaluated_depsgraph_get())

@@ -14,7 +14,7 @@ from mathutils import Matrix
 from ..solver.rigging.handles import (frame_2d, handle_matrix, region_offsets, rest_position,
                                       select_region)
 from ..solver.rigging.plane import affine_inverse, transform_points
-from . import compat, nodes, rig_format
+from . import nodes, rig_format
 from . import rig as rigs
 from .errors import RigError
 
@@ -181,13 +181,16 @@ def adopt_duplicated(obj):
             settings.handles.remove(i)
     settings.cage = cage
     settings.active_handle = min(settings.active_handle, len(settings.handles) - 1)
-    for modifier in rig_format.modifiers_of(obj):
-        ids = nodes.input_identifiers(modifier.node_group)
-        for name, value in ((nodes.CAGE_INPUT, cage), (nodes.OWNER_INPUT, obj), (nodes.HANDLES_INPUT, home)):
-            if name in ids:
-                compat.set_modifier_input(modifier, ids[name], value)
-    obj.update_tag()
+    rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage, nodes.OWNER_INPUT: obj, nodes.HANDLES_INPUT: home})
     return True
+
+
+def settle_duplicate(obj):
+    """A duplicate of a rig's owner, made or found: a rig of its own where it was duplicated
+    with handles of the rig (:func:`adopt_duplicated`), else its modifier pointed back at the
+    rig it follows (:func:`~.rig_format.repair_owner`)."""
+    if rig_format.is_follower(obj) and not adopt_duplicated(obj):
+        rig_format.repair_owner(obj)
 
 
 def owns(obj, empty):

@@ -154,32 +154,30 @@ def write_pose(cage, points):
     return True
 
 
+def _cage_points(cage, data, name="vector"):
+    """Points (n, 3) float32 of ``cage`` from ``data`` (an attribute's or a shape key's)."""
+    flat = np.empty(len(cage.data.vertices) * 3, dtype=np.float32)
+    data.foreach_get(name, flat)
+    return flat.reshape(-1, 3)
+
+
 def shown_pose(cage):
     """The pose the cage shows, (n, 3) float64 in rig space: its positions, or where a bake
     holds it the mix of its shape keys at their current values."""
-    mesh = cage.data
-
-    def read(data, name):
-        flat = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        data.foreach_get(name, flat)
-        return flat.reshape(-1, 3).astype(np.float64)
-
-    key = mesh.shape_keys
+    key = cage.data.shape_keys
     if key is None:
-        return read(mesh.attributes["position"].data, "vector")
-    mix = read(key.reference_key.data, "co")
+        return _cage_points(cage, cage.data.attributes["position"].data).astype(np.float64)
+    mix = _cage_points(cage, key.reference_key.data, "co").astype(np.float64)
     for block in key.key_blocks:
         if block != key.reference_key and block.value and not block.mute:
-            mix += block.value * (read(block.data, "co") - read(block.relative_key.data, "co"))
+            mix += block.value * (_cage_points(cage, block.data, "co").astype(np.float64)
+                                  - _cage_points(cage, block.relative_key.data, "co"))
     return mix
 
 
 def rest_of(cage):
     """The cage's rest points (n, 3) float32, as stored at bind time."""
-    mesh = cage.data
-    flat = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-    mesh.attributes[nodes.REST].data.foreach_get("vector", flat)
-    return flat.reshape(-1, 3)
+    return _cage_points(cage, cage.data.attributes[nodes.REST].data)
 
 
 def add_modifier(obj, cage, owner, inputs=None):
@@ -212,15 +210,20 @@ def repair_owner(obj):
     """
     cage = obj.shapedeform.cage
     owner = cage.shapedeform.rig if cage is not None else None
-    if owner is None:
-        return False
+    return owner is not None and point_inputs(obj, {nodes.OWNER_INPUT: owner})
+
+
+def point_inputs(obj, values):
+    """Set the inputs ``values`` ({input name: value}) of ``obj``'s deformer modifiers where
+    they differ; True when something changed (the object is then tagged for an update)."""
     changed = False
     for modifier in modifiers_of(obj):
         ids = nodes.input_identifiers(modifier.node_group)
-        key = ids.get(nodes.OWNER_INPUT)
-        if key is not None and compat.modifier_input(modifier, key) != owner:
-            compat.set_modifier_input(modifier, key, owner)
-            changed = True
+        for name, value in values.items():
+            key = ids.get(name)
+            if key is not None and compat.modifier_input(modifier, key) != value:
+                compat.set_modifier_input(modifier, key, value)
+                changed = True
     if changed:
         obj.update_tag()
     return changed
