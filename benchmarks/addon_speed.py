@@ -85,8 +85,9 @@ def _install(root):
     build = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(build)
     target = build.this_platform()
-    zip_path = build.build([target], tempfile.mkdtemp(prefix="shapedeform-zip-"))[target]
-    bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=False)
+    with tempfile.TemporaryDirectory(prefix="shapedeform-zip-") as folder:
+        zip_path = build.build([target], folder)[target]
+        bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=False)
     addon_utils.enable(MODULE, default_set=True)
     return sys.modules[MODULE].shapedeform_addon
 

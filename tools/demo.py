@@ -18,6 +18,7 @@ What it does, as an animator would in Blender, but from a script:
 
 import argparse
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -358,6 +359,15 @@ def main(argv=None):
     os.makedirs(out, exist_ok=True)
     user_resources = tempfile.mkdtemp(prefix="shapedeform-demo-")
     os.environ["BLENDER_USER_RESOURCES"] = user_resources  # before bpy loads
+    try:
+        return run(out, user_resources)
+    finally:
+        # The installed extension and its wheels take a few hundred MB.
+        shutil.rmtree(user_resources, ignore_errors=True)
+
+
+def run(out, user_resources):
+    """Rig, bake, save and draw into ``out``, with the extension installed in ``user_resources``."""
     import bpy
 
     start = time.perf_counter()
