@@ -1,7 +1,7 @@
 """Bind arbitrary points to a graph, so they follow its deformation.
 
 A point inside the shape gets the barycentric weights of the triangle containing it. A point
-outside (a Bezier handle, the edge of a stroke) gets a blend of the affine maps of the triangles
+outside the shape gets a blend of the affine maps of the triangles
 along the nearest stretch of boundary: each boundary edge within a window of the nearest one
 weighs in, fading to zero at the window's edge. The window is half the point's distance to the
 shape (at most ``BLEND_WINDOW`` of its size), so the weights change continuously as a point

@@ -26,7 +26,7 @@ sampled more finely; at the reference spacing every weight is exactly 1.
 
 Because every target is the exact minimiser of its own residual, ``E(V) = min_b ||A V - b||^2``
 over admissible targets, and its gradient is ``2 A^T (A V - b(V))`` (envelope theorem). That is
-what lets :mod:`solver.deformer` run quasi-Newton steps with an energy that never rises.
+what lets :mod:`solver.optimizer` take Newton and quasi-Newton steps with an energy that never rises.
 
 The solver's hot path keeps rows coordinate-major, shape ``(2, r)``: ``rows[0]`` holds the x
 parts of ``A V``, ``rows[1]`` the y parts, so x and y stack into one flat vector without copies.

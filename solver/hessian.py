@@ -314,10 +314,12 @@ class NewtonMatrix(Hessian):
     swinging limb; the halfway matrix, where definite, follows them further. Measurements in
     ``docs/solver_options.md``.
 
+    A :class:`~solver.preconditioner.NewtonSystem`.
+
     Attributes
     ----------
     exact : bool
-        Whether the last factor is of the exact Hessian.
+        Whether the last factor is of the exact Hessian (then positive definite).
     """
 
     #: What the matrix is where the exact one is not positive definite (see :meth:`matrix`).
@@ -365,7 +367,7 @@ class PaperMatrix:
 
     The same factor serves x and y. For large graphs the coupled Newton matrix fills in too much
     to refactor; this one never changes, so an iteration costs one back-substitution per
-    coordinate, as in the paper. Same interface as :class:`Hessian`.
+    coordinate, as in the paper. A :class:`~solver.preconditioner.Preconditioner`.
     """
 
     follows_pose = False

@@ -35,8 +35,8 @@ __all__ = ["KrylovNewton"]
 class KrylovNewton:
     """The Newton system of a large graph, solved by preconditioned conjugate gradients.
 
-    Same interface as :class:`~solver.hessian.NewtonMatrix` for :func:`solver.optimizer.newton`:
-    :meth:`factorize` at an iterate, :meth:`solve` for the step, :attr:`exact`.
+    A :class:`~solver.preconditioner.NewtonSystem`: :meth:`factorize` at an iterate,
+    :meth:`solve` for the step, :attr:`exact`.
 
     Parameters
     ----------

@@ -58,12 +58,30 @@ class Result:
 
 
 def newton(objective, matrix, v, options, size, max_iterations, tolerance, area=None):
-    """Minimise ``objective`` by Newton's method from ``v``; arguments and result as for
-    :func:`minimise`, with ``matrix`` a :class:`~solver.hessian.NewtonMatrix` or
-    :class:`~solver.krylov.KrylovNewton` refreshed at every iterate.
+    """Minimise ``objective`` by Newton's method from ``v``.
 
     With ``area`` the step is projected onto the constraint's tangent in the matrix's metric and
     each trial point moved back onto the constraint, so the line search only backtracks (Armijo).
+
+    Parameters
+    ----------
+    objective : object
+        As for :func:`minimise`; its ``refresh`` refactors ``matrix`` at every iterate.
+    matrix : solver.preconditioner.NewtonSystem
+    v : (2 f,) float64 ndarray
+        The start, stacked ``[x; y]`` (moved in place onto the area constraint with ``area``).
+    options : solver.Options
+    size : float
+        The shape's size: the tolerance is a fraction of it.
+    max_iterations : int
+    tolerance : float
+        Stop once an exact Newton step (``matrix.exact``) would move no coordinate more than
+        ``tolerance * size``; ``0.0`` runs every iteration.
+    area : solver.area.AreaConstraint, optional
+
+    Returns
+    -------
+    Result
     """
     step_limit = tolerance * size
     result = Result(v)

@@ -48,12 +48,14 @@ class Options:
     refresh_until : float
         See ``refreshes``.
     coarse_start_points : int
-        Above this many graph points a solve starts from the pose of a coarse copy of the
-        shape instead of the as-similar-as-possible pose.
+        Above this many graph points the coarse copy a solve may start from (and the two-grid's
+        coarse level) is a graph at the default spacing; below, an outline copy of about
+        ``coarse_interior`` interior points. Either way the solve starts from the lower-energy
+        of the coarse copy's pose and the as-similar-as-possible pose.
     coarse_interior : int
-        Interior points of the two-grid's coarse copy below ``coarse_start_points``.
+        Interior points of the outline copy below ``coarse_start_points``.
     coarse_detail : float
-        Outline detail that coarse copy keeps, in units of its spacing.
+        Outline detail that copy keeps, in units of its spacing.
     coarse_ratio : float
         A graph whose coarse copy would not be this many times smaller is its own coarse
         level (the whole Newton matrix).

@@ -1,7 +1,7 @@
 """The matrices a solve steps with, and the choice among them (:func:`choose`).
 
 Every one stands for the energy's Hessian on the stacked free coordinates ``[x; y]``.
-:func:`solver.optimizer.newton` solves with one at every iterate:
+:func:`solver.optimizer.newton` solves with one at every iterate (:class:`NewtonSystem`):
 
 - :class:`~solver.hessian.NewtonMatrix`: the Newton matrix of the whole graph, one numeric
   refactorisation per iterate (graphs up to ``Options.newton_max_points``, ``newton=True``);
@@ -26,11 +26,31 @@ from .hessian import NewtonMatrix, PaperMatrix
 from .krylov import KrylovNewton
 from .two_grid import TwoGrid
 
-__all__ = ["Preconditioner", "choose"]
+__all__ = ["NewtonSystem", "Preconditioner", "choose"]
+
+
+class NewtonSystem(Protocol):
+    """What Newton's method (:func:`solver.optimizer.newton`) needs of the matrix it steps with."""
+
+    #: True: :meth:`factorize` is called at every iterate.
+    follows_pose: bool
+
+    #: Whether the last :meth:`solve` used the exact Hessian and met only positive curvature
+    #: (a definite factor, or conjugate gradients that never turned back): only such a step
+    #: says how far the minimum is, so only a short one of these stops a solve.
+    exact: bool
+
+    def factorize(self, rows, fold_terms=None, fit=None):
+        """Take the Hessian at the pose with ``A V = rows`` ((2, r)); ``fold_terms`` and ``fit``
+        as for :meth:`Preconditioner.factorize`."""
+
+    def solve(self, rhs, forcing=0.0):
+        """The Newton step's system: ``H x = rhs`` ((2 f,)) to a relative residual ``forcing``
+        (a factor solves it exactly); returns ``x`` (2 f,)."""
 
 
 class Preconditioner(Protocol):
-    """What the optimiser needs of a preconditioner."""
+    """What L-BFGS (:func:`solver.optimizer.minimise`) needs of its initial inverse Hessian."""
 
     #: Whether :meth:`factorize` depends on the pose (False: the optimiser never refreshes it).
     follows_pose: bool
@@ -69,7 +89,7 @@ def choose(energy, free, triangles, newton, options, coarse, preserve_area=False
 
     Returns
     -------
-    matrix : NewtonMatrix, KrylovNewton or Preconditioner
+    matrix : NewtonSystem or Preconditioner
     newton_steps : bool
         True for :func:`solver.optimizer.newton`, False for L-BFGS (:func:`solver.optimizer.minimise`).
     """

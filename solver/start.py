@@ -2,8 +2,8 @@
 
 - :class:`SimilarityStart`: the as-similar-as-possible pose (one linear solve, factorised once
   per handle set) that turns free limbs with what they hang from.
-- :class:`CoarseStart`: for large graphs, the converged pose of a coarse copy of the shape,
-  carried to the fine points by its binding, so a dense graph poses like a sparse one.
+- :class:`CoarseStart`: the converged pose of a coarse copy of the shape, carried to the fine
+  points by its binding, so a dense graph poses like a sparse one.
 
 Coarse copies depend on the graph alone while a deformer is rebuilt for every change of handles
 or weights, so they are kept in a :class:`CoarseCopies` that the caller owns and may pass from

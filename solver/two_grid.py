@@ -8,7 +8,7 @@ fills in too much to be affordable anyway. The paper's constant matrix ``K = A_f
 but it treats turning an edge as stiff, so the smooth, large-scale turns of whole limbs (low
 frequencies) crawl.
 
-A coarse copy of the shape (a few hundred points; see ``solver.deformer``) spans exactly those
+A coarse copy of the shape (a few hundred points; see :mod:`solver.start`) spans exactly those
 smooth motions: its binding ``P`` carries a coarse displacement to every fine point, piecewise
 linearly. The Galerkin matrix ``P^T H P`` of the fine Newton matrix ``H`` is small, so
 refactoring it costs a fraction of refactoring ``H`` (0.25-0.6 ms against 1.5 ms at the
@@ -16,7 +16,8 @@ paper's sizes), and a correction through it turns limbs as Newton does, measured
 fine graph's own energy.
 
 The two are combined as a cycle: a coarse correction, then a solve with ``K`` on what it left,
-which L-BFGS uses as its initial inverse Hessian just as it uses a Newton factor on small graphs.
+which L-BFGS uses as its initial inverse Hessian (with the area constraint on large graphs;
+small graphs take Newton steps instead, :func:`solver.optimizer.newton`).
 The cycle's error propagation is ``E = (I - K^-1 H)(I - P H_c^-1 P^T H)``: a projection that is
 orthogonal in ``H``'s inner product times a map whose ``H``-norm is below 1, because ``H <= K``
 (:mod:`solver.hessian` clamps every softening below 1). So ``||E||_H < 1``, and for any gradient
@@ -44,7 +45,7 @@ _CHUNK = 20000
 class TwoGrid:
     """Two-grid preconditioner on the stacked free coordinates ``[x; y]`` (length ``2 f``).
 
-    Same interface as :class:`~solver.hessian.Hessian`: :meth:`factorize` refreshes the coarse
+    A :class:`~solver.preconditioner.Preconditioner`: :meth:`factorize` refreshes the coarse
     correction at a pose (one numeric refactorisation of the small coarse matrix; the fine factor
     of ``K`` is never touched), :meth:`solve` applies the cycle.
 

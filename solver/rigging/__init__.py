@@ -3,12 +3,13 @@
 What the add-on needs around the solver, as plain numpy: fitting the plane a 3D shape lies in
 (:mod:`.plane`), handle frames and the regions they carry (:mod:`.handles`), the ray geometry of
 dragging in the viewport (:mod:`.drag`), outlines of meshes and Bezier curves (:mod:`.outline`),
-and the areas stroke drawings and pictures cover (:mod:`.silhouette`).
+the areas stroke drawings and pictures cover (:mod:`.silhouette`), and the heights that
+layer a shape folded over itself (:mod:`.depth`).
 
 These modules may use :mod:`solver`; :mod:`solver` never imports them.
 """
 
-from . import drag, handles, outline, plane, silhouette
+from . import depth, drag, handles, outline, plane, silhouette
 from .plane import Plane, fit_plane
 
-__all__ = ["drag", "handles", "outline", "plane", "silhouette", "Plane", "fit_plane"]
+__all__ = ["depth", "drag", "handles", "outline", "plane", "silhouette", "Plane", "fit_plane"]

@@ -30,7 +30,8 @@ def frame_2d(plane, matrix):
     Parameters
     ----------
     plane : solver.rigging.plane.Plane
-        The shape's plane, in the same space as ``matrix`` (the shape object's local space).
+        The shape's plane, in the same space as ``matrix`` (the space the shape was
+        bound in).
     matrix : (4, 4) array_like
         The handle's transform in that space.
 
