@@ -201,7 +201,6 @@ class Energy:
         sizes = [b.shape[0] for b in blocks]
         self.curve_rows = slice(0, sizes[0])
         self.length_rows = slice(sizes[0] + sizes[1], sum(sizes))
-        self.rows = sum(sizes)
 
         rest_rows = self.matrix @ rest
         self.curve_rest = rest_rows[self.curve_rows].copy()

@@ -40,7 +40,8 @@ class Options:
         the area constraint or ``newton=False``, by L-BFGS over a preconditioner that is
         refactorised rarely or never.
     max_halvings : int
-        Step halvings the line search tries before it calls the pose a minimum to rounding.
+        Trial steps a line search makes (halvings when backtracking; the Wolfe search may also
+        lengthen the step) before it calls the pose a minimum to rounding.
     refreshes : int
         L-BFGS only (the area constraint on graphs above ``newton_max_points``): refreshes of
         the two-grid's coarse Newton matrix at most per solve, made while steps exceed
