@@ -126,14 +126,13 @@ class Bake:
     frames : list of int
         See :func:`frame_list`.
     step : int
-        Frame step (sets where a mesh's shape key fades in and out).
+        Frame step (recorded in the bake's mark).
     scene : bpy.types.Scene, optional
 
     Raises
     ------
     RigError
-        An object is not bound, has no handles, is of a kind that cannot be baked, or is not
-        evaluated in the context's view layer.
+        An object is not bound, has no handles, or is not evaluated in the scene's view layer.
     """
 
     def __init__(self, objects, frames, step=1, scene=None):

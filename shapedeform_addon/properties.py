@@ -10,6 +10,8 @@ from functools import partial
 import bpy
 from bpy import props
 
+from . import rig
+
 
 def _overridable(kind):
     """``kind`` of property, overridable: a library override of a rigged character keeps its
@@ -24,24 +26,29 @@ BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty, Poin
 
 
 def _settings_changed(self, context):
-    """Weights, area or iterations changed: rebuild the deformer and pose again."""
-    from . import rig  # late: rig imports this module
+    """Weights, area or folds changed: rebuild the deformer and pose again."""
     owner = self.id_data
     if isinstance(owner, bpy.types.Object) and self.is_bound:
         rig.invalidate(owner)
         rig.pose_safely(owner, context.evaluated_depsgraph_get())
 
 
+def _iterations_changed(self, context):
+    """An iteration budget changed: pose again with the same deformer."""
+    owner = self.id_data
+    if isinstance(owner, bpy.types.Object) and self.is_bound:
+        rig.pose_safely(owner, context.evaluated_depsgraph_get())
+
+
 def _pin_changed(self, context):
     """A pin's amount changed: pose its rig again (the reach is cached with the rig)."""
-    from . import rig  # late: rig imports this module's users
     owner = self.rig
     if isinstance(self.id_data, bpy.types.Object) and owner is not None and owner.shapedeform.is_bound:
         rig.pose_safely(owner, context.evaluated_depsgraph_get())
 
 
 def _pin_reach_changed(self, context):
-    from . import rig
+    """A pin's extent or stiffness changed: rebuild its rig's deformer and pose again."""
     owner = self.rig
     if owner is not None and owner.shapedeform.is_bound:
         rig.invalidate(owner)
@@ -104,11 +111,11 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
     weight_edge: FloatProperty(name="Edge Length", description="Weight of the edge length term",
                                default=1.0, min=0.0, soft_max=10.0, update=_settings_changed)
     iterations: IntProperty(name="Viewport", description="Most solver iterations per update while you work",
-                            default=15, min=1, max=200, update=_settings_changed)
+                            default=15, min=1, max=200, update=_iterations_changed)
     render_iterations: IntProperty(
         name="Render", description="Most solver iterations when baking, rendering or running without a "
                                    "window; solves that converge sooner stop sooner",
-        default=30, min=1, max=200, update=_settings_changed)
+        default=30, min=1, max=200, update=_iterations_changed)
     graph_mode: EnumProperty(
         name="Graph", description="What the solver deforms",
         items=[("AUTO", "Automatic", "The mesh itself when it is small, an outline graph when it is dense"),

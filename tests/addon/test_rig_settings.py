@@ -38,6 +38,21 @@ def test_viewport_and_render_iterations(addon):
     assert np.array_equal(render, converged)
 
 
+def test_a_new_iteration_budget_poses_again_without_rebuilding(addon):
+    """The budgets are not part of what the deformer is made of: changing one re-solves with the
+    same deformer (rebuilding it refactorises and solves the coarse copy again)."""
+    rig = addon.shapedeform_addon.rig
+    obj, _, moved = rig_with_two_handles()
+    moved.location.z += 0.6
+    moved.rotation_euler.y += 0.8
+    bpy.context.view_layer.update()
+    deformer = rig.get(obj).deformer
+    before = rig.pose(obj).posed.copy()
+    obj.shapedeform.render_iterations = 1
+    assert rig.get(obj).deformer is deformer
+    assert np.abs(rig.get(obj).posed - before).max() > 1e-6  # posed again, one iteration short
+
+
 def test_a_driven_setting_reposes_when_its_driver_changes(addon, quiet):
     """A setting driven by a control's custom property: changing the control solves the pose
     again, as editing the setting does (the settings' own update callbacks never run for a
