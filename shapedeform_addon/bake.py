@@ -199,7 +199,7 @@ class Bake:
                 break
             posed.update((obj.name, rig.pose(obj, depsgraph, final=True)) for obj in moved)
         for obj in self.objects:
-            self.captured[obj.name].append(posed[obj.name].cage_points(posed[obj.name].posed))
+            self.captured[obj.name].append(posed[obj.name].shown)
         self.done += 1
         return self.done == self.total
 

@@ -109,7 +109,7 @@ def begin(context, obj, ray, pin=False):
     settings = obj.shapedeform
     if pin:
         current = rig.get(obj)
-        shape = transform_points(rig_format.rig_space(obj), current.cage_points(current.posed))
+        shape = transform_points(rig_format.rig_space(obj), current.shown)
         index = nearest(shape, hit)
         if index < 0:
             raise RigError(f"'{obj.name}' has no points to pin")

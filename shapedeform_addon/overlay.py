@@ -10,6 +10,7 @@ to the GPU, which has no context without a window.
 import bpy
 import numpy as np
 
+from ..solver.rigging import depth
 from ..solver.rigging.plane import transform_points
 from . import rig as rigs
 from . import rig_format
@@ -33,7 +34,8 @@ def drawing_data(obj):
         ``regions``: (m, 3) float32 graph points owned by handles;
         ``reach``: (r, 3) float32 graph points overlap and starch pins reach, and
         ``reach_colors``, (r, 4) float32: white for in front, black for behind, as opaque as
-        the overlap pin's weight there times its amount (up to 1); then blue for starch.
+        the overlap pins' summed amount there (``REACH_OPACITY`` at 1 or more); then blue for
+        starch, as opaque as its stiffness (full at 10).
     """
     if obj is None or not obj.shapedeform.is_bound or not obj.shapedeform.show_overlay:
         return None
@@ -41,22 +43,13 @@ def drawing_data(obj):
         rig = rigs.get(obj)
     except RigError:
         return None
-    points = transform_points(rig_format.rig_space(obj), rig.cage_points(rig.posed))
-    strength = rig.in_front[:, None] * rig.overlap_reach  # (pins, n)
-    reached = np.flatnonzero(np.abs(strength).sum(axis=0) > 0) if len(strength) else np.empty(0, np.int64)
-    total = strength[:, reached].sum(axis=0) if len(strength) else np.empty(0)
-    colors = np.zeros((len(reached), 4), np.float32)
-    colors[:, :3] = (total > 0)[:, None]
-    colors[:, 3] = np.minimum(np.abs(total), 1.0) * REACH_OPACITY
-    # Starch pins: tinted blue, as opaque as their weight (a stiffness of 10 or more is full).
-    stiff = rig.starch @ rig.starch_reach if len(rig.starch) else np.zeros(len(points))
-    starched = np.flatnonzero(stiff > 0)
-    starch_colors = np.tile(np.array(STARCH_COLOR, np.float32), (len(starched), 1))
-    starch_colors[:, 3] *= np.minimum(stiff[starched] / 10.0, 1.0)
+    points = transform_points(rig_format.rig_space(obj), rig.shown)
+    reached, colors = depth.reach_tints(rig.in_front, rig.overlap_reach, rig.starch, rig.starch_reach,
+                                        REACH_OPACITY, STARCH_COLOR)
     return {"edges": points[rig.graph.edges.ravel()].astype(np.float32),
             "regions": points[rig.indices].astype(np.float32),
-            "reach": np.concatenate([points[reached], points[starched]]).astype(np.float32),
-            "reach_colors": np.concatenate([colors, starch_colors])}
+            "reach": points[reached].astype(np.float32),
+            "reach_colors": colors}
 
 
 def draw():

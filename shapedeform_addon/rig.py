@@ -63,15 +63,15 @@ class Rig:
             [empty.shapedeform.extent * self.graph.size for empty, _ in overlap])
         self.in_front = np.zeros(len(overlap))
         self.signature = signature(obj)
-        # Graph positions of the pose shown (the cage's, as saved or last written), and whether
-        # it is what a render gives: converged, or solved with the Render budget.
-        self.posed = self._shown(settings.cage)
+        # The pose shown (the cage's, as saved or last written): graph positions (n, 2) and the
+        # cage's points (n, 3) in rig space, lifted where it overlaps itself; and whether it is
+        # what a render gives (converged, or solved with the Render budget).
+        self.shown = rig_format.shown_pose(settings.cage).astype(np.float32)
+        self.posed = self.plane.to_2d(self.shown)
+        if not np.all(np.isfinite(self.posed)):
+            self.posed = self.graph.points.copy()
+            self.shown = self.cage_points(self.posed)
         self.settled = True
-
-    def _shown(self, cage):
-        """The graph positions (n, 2) the cage shows; the rest where they are not finite."""
-        shown = self.plane.to_2d(rig_format.shown_pose(cage))
-        return shown if np.all(np.isfinite(shown)) else self.graph.points.copy()
 
     def frames(self, obj, depsgraph=None):
         """Each handle's 2D frame in the shape's plane, (h, 3, 3), from evaluated transforms."""
@@ -101,7 +101,7 @@ class Rig:
         self.starch_reach = depth.pin_weights(self.graph.points, self.graph.edges, [point for _, point in pins],
                                               [empty.shapedeform.extent * self.graph.size for empty, _ in pins])
         self.starch = np.array([empty.shapedeform.stiffness for empty, _ in pins], dtype=np.float64)
-        return 1.0 + self.starch @ self.starch_reach if pins else None
+        return depth.stiffness(self.starch, self.starch_reach)
 
     def read_pins(self):
         """Take the overlap pins' current amounts (the active depsgraph writes animated values
@@ -197,7 +197,7 @@ def pose(obj, depsgraph=None, final=None):
         raise RigError(f"'{owner.name}': the solve gave non-finite positions; kept the last pose")
     if not rig_format.is_baked(owner):
         rig_format.write_pose(settings.cage, np.ascontiguousarray(points))
-    rig.posed = positions
+    rig.posed, rig.shown = positions, points
     rig.settled = rig.settled or final
     return rig
 

@@ -112,3 +112,61 @@ def heights(score, size, pin_amounts=None, weights=None):
     if pin_amounts is not None and len(pin_amounts):
         total += np.asarray(pin_amounts, dtype=np.float64) @ np.asarray(weights, dtype=np.float64)
     return HEIGHT_PER_SCORE * size * total
+
+
+def stiffness(amounts, weights):
+    """Per point, 1 plus each starch pin's stiffness times its weight there: the factor the
+    deformer weighs each point's energy terms by.
+
+    Parameters
+    ----------
+    amounts : (k,) array_like
+        Each starch pin's ``stiffness``.
+    weights : (k, n) array_like
+        From :func:`pin_weights`.
+
+    Returns
+    -------
+    (n,) float64 ndarray, or None without pins
+    """
+    if not len(amounts):
+        return None
+    return 1.0 + np.asarray(amounts, dtype=np.float64) @ np.asarray(weights, dtype=np.float64)
+
+
+def reach_tints(in_front, overlap_weights, stiffnesses, starch_weights, opacity, starch_color, full_stiffness=10.0):
+    """The points pins reach and how an overlay tints them: overlap pins white where their summed
+    amount brings the shape in front, black where it sends it behind, as opaque as that amount
+    (``opacity`` at 1 or more); then starch pins in ``starch_color``, as opaque as their summed
+    stiffness over ``full_stiffness``.
+
+    Parameters
+    ----------
+    in_front : (k,) array_like
+    overlap_weights : (k, n) array_like
+        From :func:`pin_weights`, for the overlap pins.
+    stiffnesses : (s,) array_like
+    starch_weights : (s, n) array_like
+        From :func:`pin_weights`, for the starch pins.
+    opacity : float
+    starch_color : (4,) array_like
+        RGBA; its alpha is the most a starched point gets.
+    full_stiffness : float
+
+    Returns
+    -------
+    points : (m,) int64 ndarray
+        Graph points, overlap-reached first (a point reached by both kinds appears twice).
+    colors : (m, 4) float32 ndarray
+    """
+    strength = np.asarray(in_front, dtype=np.float64)[:, None] * np.asarray(overlap_weights, dtype=np.float64)
+    reached = np.flatnonzero(np.abs(strength).sum(axis=0) > 0)
+    total = strength[:, reached].sum(axis=0)
+    colors = np.zeros((len(reached), 4), np.float32)
+    colors[:, :3] = (total > 0)[:, None]
+    colors[:, 3] = np.minimum(np.abs(total), 1.0) * opacity
+    stiff = stiffness(stiffnesses, starch_weights)
+    starched = np.flatnonzero(stiff > 1.0) if stiff is not None else np.empty(0, np.int64)
+    starch_colors = np.tile(np.asarray(starch_color, np.float32), (len(starched), 1))
+    starch_colors[:, 3] *= np.minimum((stiff[starched] - 1.0) / full_stiffness, 1.0) if len(starched) else 1.0
+    return np.concatenate([reached, starched]), np.concatenate([colors, starch_colors])

@@ -48,3 +48,18 @@ def test_pins_add_up_where_their_extents_meet_and_sign_sets_front_or_back():
     both = depth.heights(score, 1.0, [1.0, 1.0], weights)
     assert both[4] > depth.heights(score, 1.0, [1.0, 0.0], weights)[4] > 0.0
     assert np.all(depth.heights(score, 1.0, [-1.0, 0.0], weights)[:10] <= 0.0)
+
+
+def test_reach_tints_follow_the_summed_amounts():
+    """White where overlap pins add up to in front, black behind, opacity capped at 1 of amount;
+    starch after them, as opaque as its stiffness; points no pin reaches are left out."""
+    overlap = np.array([[1.0, 1.0, 0.0, 0.0], [0.0, 1.0, 1.0, 0.0]])
+    points, colors = depth.reach_tints([0.5, -2.0], overlap, [5.0], [[0.0, 0.0, 0.0, 1.0]],
+                                       opacity=0.8, starch_color=(0.0, 0.0, 1.0, 0.6))
+    assert points.tolist() == [0, 1, 2, 3]
+    assert colors[0, :3].tolist() == [1, 1, 1] and np.isclose(colors[0, 3], 0.4)
+    assert colors[1, :3].tolist() == [0, 0, 0] and np.isclose(colors[1, 3], 0.8)  # -1.5: capped
+    assert colors[2, :3].tolist() == [0, 0, 0] and np.isclose(colors[2, 3], 0.8)
+    assert colors[3, :3].tolist() == [0, 0, 1] and np.isclose(colors[3, 3], 0.3)  # 5 of 10
+    assert depth.stiffness([], np.zeros((0, 4))) is None
+    assert np.allclose(depth.stiffness([5.0], [[0.0, 0.0, 0.0, 1.0]]), [1, 1, 1, 6])
