@@ -8,6 +8,7 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatVectorProperty
 
+from ..solver.rigging.plane import transform_points
 from . import binding, handles, rig, rig_format, sources
 from .errors import RigError
 from .properties import PIN_KINDS
@@ -101,8 +102,7 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
                 return {"CANCELLED"}
             # In the rig owner's space: a duplicate that follows its rig is mapped through the
             # cage in the owner's local coordinates, wherever the duplicate stands.
-            world = np.array(obj.matrix_world, dtype=np.float64)
-            locations = local @ world[:3, :3].T + world[:3, 3]
+            locations = transform_points(obj.matrix_world, local)
         added = []
         try:
             for location in locations:

@@ -13,8 +13,8 @@ import numpy as np
 from mathutils import Matrix
 
 from ...solver.outline import outline_graph
-from ...solver.rigging.handles import apply_affine
-from ...solver.rigging.plane import fit_plane
+from ...solver.rigging.handles import apply_affine, invert_affine
+from ...solver.rigging.plane import fit_plane, transform_points
 from ...solver.rigging.silhouette import fit_affine, image_cutout
 from .. import rig_format
 from . import Prepared, RigError, mesh as mesh_source
@@ -65,10 +65,10 @@ def prepare(obj, settings):
         rings = [apply_affine(to_plane, ring / (width, height))
                  for ring in image_cutout(pixels.reshape(height, width, 4))]
         graph = outline_graph(rings, settings.density)
+        uvs = apply_affine(invert_affine(to_plane), graph.points)[graph.triangles].astype(np.float32)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     vertices = plane.to_3d(graph.points).astype(np.float32)  # float32 as Blender stores them
-    uvs = apply_affine(np.linalg.inv(to_plane), graph.points)[graph.triangles].astype(np.float32)
 
     def commit(o):
         cutout = bpy.data.meshes.new(f"{quad.name} Cut-out")
@@ -118,7 +118,7 @@ def _as_bound(obj, cutout, applied):
         return False
     now = np.empty(len(cutout.vertices) * 3, dtype=np.float32)
     cutout.vertices.foreach_get("co", now)
-    expected = bound @ applied[:3, :3].T + applied[:3, 3]
+    expected = transform_points(applied, bound)
     return bool(np.allclose(now.reshape(-1, 3), expected, rtol=0.0, atol=1e-5 * max(np.ptp(bound, axis=0).max(), 1e-9)))
 
 

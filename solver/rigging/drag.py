@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .plane import transform_points  # noqa: F401  (the drag maps points with it too)
+
 __all__ = ["world_plane", "ray_plane", "transform_points", "nearest", "parent_offset"]
 
 # A ray closer than this to parallel with the plane (cosine of the angle between the ray and the
@@ -71,12 +73,6 @@ def ray_plane(ray_origin, ray_direction, plane_origin, plane_normal):
     t = float((np.asarray(plane_origin, dtype=np.float64) - origin) @ normal) / float(direction @ normal)
     hit = origin + t * direction
     return hit if np.all(np.isfinite(hit)) else None
-
-
-def transform_points(matrix, points):
-    """Apply a 4x4 affine ``matrix`` to points (p, 3); returns (p, 3) float64."""
-    matrix = np.asarray(matrix, dtype=np.float64)
-    return np.asarray(points, dtype=np.float64).reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
 
 
 def nearest(points, query):

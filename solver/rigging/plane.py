@@ -139,7 +139,7 @@ def fit_plane(points, flatness=DEFAULT_FLATNESS):
 def transform_points(matrix, points):
     """Apply a 4x4 affine ``matrix`` to 3D ``points`` (p, 3); returns (p, 3) float64."""
     matrix = np.asarray(matrix, dtype=np.float64)
-    return np.asarray(points, dtype=np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+    return np.asarray(points, dtype=np.float64).reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
 
 
 def affine_inverse(matrix):
