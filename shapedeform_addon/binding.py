@@ -9,7 +9,6 @@ image plane's quad is swapped for a cut-out of its picture, kept and given back 
 import bpy
 
 from . import bake, handles, rig, rig_format, sources
-from .sources import image_plane
 from .errors import RigError
 
 
@@ -50,10 +49,7 @@ def bind(obj):
 
 def _forget_settings(obj):
     settings = obj.shapedeform
-    rig_format.clear_graph(settings)
-    for key in (rig_format.BAKED, rig_format.RIGGED_KEY, image_plane.CUTOUT_KEY, "gp_layers", "gp_frames",
-                "baked_gp_frames"):
-        settings.pop(key, None)
+    rig_format.clear(settings)
     settings.is_bound = False
     settings.kind = ""
     settings.status = ""

@@ -119,8 +119,8 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     empty.shapedeform.rig = obj
     item = settings.handles.add()
     item.object = empty
-    item["indices"] = region.astype(np.int32)
-    item["offsets"] = offsets.ravel()
+    item[rig_format.HANDLE_INDICES] = region.astype(np.int32)
+    item[rig_format.HANDLE_OFFSETS] = offsets.ravel()
     settings.active_handle = len(settings.handles) - 1
     rigs.invalidate(obj)
     return empty

@@ -14,7 +14,9 @@ On the bound object (the rig's *owner*), ``obj.shapedeform``:
     with ``graph_loop_sizes``, ``graph_triangles``), stored rather than rebuilt so that a file
     opens with exactly the graph it was rigged with; for grease pencil ``rigged_attribute``,
     the name of the LAYER attribute marking the layers it deforms (one per rig, as objects
-    sharing their data may rig different layers; "" when it deforms them all).
+    sharing their data may rig different layers; "" when it deforms them all); for an image
+    plane ``cutout_points``, the cut-out's vertices as bind made them (unbind tells from them
+    whether the cut-out was edited).
 The cage, a mesh object parented to the owner (or copying its transform) and hidden:
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
     space when it was bound), its point attribute ``sd_rest`` the rest, ``shapedeform.rig``
@@ -45,12 +47,20 @@ BAKE_MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
 # On the owner's settings: the name of the attribute marking the grease-pencil layers its rig
 # deforms ("" for all of them); the modifier is given the same name.
 RIGGED_KEY = "rigged_attribute"
+CUTOUT_KEY = "cutout_points"  # on an image plane's settings: the cut-out's vertices as bind made them
+HANDLE_INDICES = "indices"  # on a handle's item: the graph points it owns
+HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when it was added
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
+# Kept by older versions, which wrote poses into the object's own data: read only to give the
+# rest shape back (``restore_legacy`` of each source), dropped on unbind.
+LEGACY_GP_LAYERS, LEGACY_GP_FRAMES = "gp_layers", "gp_frames"
+LEGACY_KEYS = (LEGACY_GP_LAYERS, LEGACY_GP_FRAMES, "baked_gp_frames", "own_graph")
 
 
 # -- the graph and the plane ------------------------------------------------------------------
 
 def store_graph(settings, plane, graph):
+    """Keep ``plane`` (Plane) and ``graph`` (solver.Graph) on an owner's ``settings``."""
     settings["plane"] = plane.to_array()
     settings["graph_points"] = graph.points.ravel()
     settings["graph_edges"] = graph.edges.astype(np.int32).ravel()
@@ -77,8 +87,9 @@ def read_graph(obj):
     return plane, graph
 
 
-def clear_graph(settings):
-    for key in GRAPH_KEYS + ("own_graph",):
+def clear(settings):
+    """Drop everything this module keeps on an owner's ``settings`` as ID properties (unbind)."""
+    for key in GRAPH_KEYS + (BAKED, RIGGED_KEY, CUTOUT_KEY) + LEGACY_KEYS:
         settings.pop(key, None)
 
 
@@ -98,9 +109,9 @@ def handle_items(obj):
     """The owner's live position handles: [(Empty, indices (k,) int64, offsets (k, 2) float64)]."""
     found = []
     for item in obj.shapedeform.handles:
-        if present(item.object) and "indices" in item and item.object.shapedeform.pin_kind == "POSITION":
-            found.append((item.object, np.asarray(item["indices"], dtype=np.int64),
-                          np.asarray(item["offsets"], dtype=np.float64).reshape(-1, 2)))
+        if present(item.object) and HANDLE_INDICES in item and item.object.shapedeform.pin_kind == "POSITION":
+            found.append((item.object, np.asarray(item[HANDLE_INDICES], dtype=np.int64),
+                          np.asarray(item[HANDLE_OFFSETS], dtype=np.float64).reshape(-1, 2)))
     return found
 
 

@@ -21,7 +21,7 @@ from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from . import Prepared, RigError
 from ..nodes import ORDER_INPUT, RIGGED
-from ..rig_format import RIGGED_KEY
+from ..rig_format import LEGACY_GP_FRAMES, LEGACY_GP_LAYERS, RIGGED_KEY
 from .mesh import REST_ATTRIBUTE, read_vectors
 
 # Strokes thinner than this fraction of the drawing's size are swept this wide, so a hairline
@@ -41,8 +41,8 @@ def _chosen_layers(obj, settings):
 def bound_frames(obj):
     """(layer name, frame number) of each drawing an older version's rig wrote into."""
     settings = obj.shapedeform
-    names = settings.get("gp_layers", "").split("\n")
-    return [(name, int(number)) for name, number in zip(names, settings.get("gp_frames", []))]
+    names = settings.get(LEGACY_GP_LAYERS, "").split("\n")
+    return [(name, int(number)) for name, number in zip(names, settings.get(LEGACY_GP_FRAMES, []))]
 
 
 def drawing_at(obj, name, number):
@@ -161,7 +161,7 @@ def restore_legacy(obj):
         drawing.attributes.remove(drawing.attributes[REST_ATTRIBUTE])
         drawing.attributes["position"].data.foreach_set("vector", rest.ravel())
         drawing.tag_positions_changed()
-    for key in ("gp_layers", "gp_frames"):
+    for key in (LEGACY_GP_LAYERS, LEGACY_GP_FRAMES):
         obj.shapedeform.pop(key, None)
     obj.data.update_tag()
     return lost

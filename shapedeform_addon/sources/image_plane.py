@@ -17,6 +17,7 @@ from ...solver.rigging.handles import apply_affine, invert_affine
 from ...solver.rigging.plane import fit_plane, transform_points
 from ...solver.rigging.silhouette import fit_affine, image_cutout
 from .. import rig_format
+from ..rig_format import CUTOUT_KEY
 from . import Prepared, RigError, mesh as mesh_source
 
 # Shared with meshes once the cut-out is in place.
@@ -43,7 +44,6 @@ def is_image_plane(obj):
             and data.uv_layers.active is not None and _image(obj) is not None)
 
 
-CUTOUT_KEY = "cutout_points"  # on the settings: the cut-out's vertices as bind made them
 
 
 def prepare(obj, settings):
