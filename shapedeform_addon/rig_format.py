@@ -330,12 +330,16 @@ def is_baked(obj):
 
 def owners(scene):
     """Rig owners that ``scene`` shows: its objects, and those of the collections its objects
-    instance (a character shown in a shot by a Collection Instance). Linked rigs (library data
-    without an override) are left out: nothing here can pose them (a bake in their own file can)."""
-    found = []
-    for obj in scene.objects:
-        if obj.instance_type == "COLLECTION" and obj.instance_collection is not None:
-            found.extend(o for o in obj.instance_collection.all_objects if _posable_owner(o))
+    instance, at any depth (a character shown in a shot by a Collection Instance, or in a set
+    that is itself instanced). Linked rigs (library data without an override) are left out:
+    nothing here can pose them (a bake in their own file can)."""
+    found, seen = [], set()
+    objects = list(scene.objects)
+    for obj in objects:  # grows with the objects of each instanced collection, in scene order
+        collection = obj.instance_collection if obj.instance_type == "COLLECTION" else None
+        if collection is not None and collection.session_uid not in seen:
+            seen.add(collection.session_uid)  # an instance cycle ends here
+            objects.extend(collection.all_objects)
         if _posable_owner(obj):
             found.append(obj)
     return list(dict.fromkeys(found))  # shown twice, posed once

@@ -935,12 +935,15 @@ def instanced_points(obj):
     raise AssertionError(f"no instance of '{obj.name}' is shown")
 
 
-@pytest.mark.parametrize("only_instanced", [False, True], ids=["also in a scene", "only instanced"])
-def test_a_collection_instanced_in_another_scene_follows_its_handles(addon, only_instanced, tmp_path, quiet):
+@pytest.mark.parametrize("only_instanced, nested", [(False, False), (True, False), (True, True)],
+                         ids=["also in a scene", "only instanced", "instanced in an instanced set"])
+def test_a_collection_instanced_in_another_scene_follows_its_handles(addon, only_instanced, nested, tmp_path,
+                                                                     quiet):
     """A rigged character's collection shown in a shot scene by a Collection Instance poses
     there on every frame, also when the collection is in no scene itself (only rigs directly
     in the scene were posed: the instance stayed at rest, 0.8 from its pose; and handles in no
-    scene counted as deleted)."""
+    scene counted as deleted), and when the instance is itself in an instanced set (only one
+    level was followed: at rest again)."""
     character, obj = character_collection(tmp_path)
     rig = Rigged(obj)
     scene = bpy.context.scene
@@ -956,6 +959,11 @@ def test_a_collection_instanced_in_another_scene_follows_its_handles(addon, only
     shot = bpy.data.scenes.new("Shot")
     instance = bpy.data.objects.new("Character Instance", None)
     instance.instance_type, instance.instance_collection = "COLLECTION", character
+    if nested:
+        stage = bpy.data.collections.new("Set")
+        stage.objects.link(instance)
+        instance = bpy.data.objects.new("Set Instance", None)
+        instance.instance_type, instance.instance_collection = "COLLECTION", stage
     shot.collection.objects.link(instance)
     bpy.context.window.scene = shot
     shot.frame_set(10)
