@@ -112,10 +112,13 @@ def _bake(args):
         if not os.path.isdir(folder):
             raise _UsageError(f"--output: the folder {folder} does not exist")
     if args.objects:
-        missing = [name for name in args.objects if name not in scene.objects]
+        # The scene's objects and the rigs it shows through collection instances; a handle or
+        # cage stands for its rig, as in the Bake operator.
+        shown = {o.name: o for o in rig_format.owners(scene)} | {o.name: o for o in scene.objects}
+        missing = [name for name in args.objects if name not in shown]
         if missing:
             raise _UsageError(f"no object named {', '.join(map(repr, missing))} in scene '{scene.name}'")
-        objects = [scene.objects[name] for name in args.objects]
+        objects = list(dict.fromkeys(rig_format.owner_of(shown[name]) or shown[name] for name in args.objects))
         unbound = [o.name for o in objects if not o.shapedeform.is_bound]
         if unbound:
             raise _UsageError(f"not rigged with Shape Deform: {', '.join(map(repr, unbound))}")

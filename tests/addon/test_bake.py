@@ -216,7 +216,8 @@ def test_command_line_bakes_a_saved_file(addon, tmp_path, capsys):
     assert cage_keys(obj) == []  # nothing was baked by the refusals
 
     out = str(tmp_path / "baked.blend")
-    assert main(["bake", "--frames", "1-6", "--objects", "Grid", "--output", out]) == 0
+    handle = obj.shapedeform.handles[0].object.name  # stands for its rig, as in the Bake operator
+    assert main(["bake", "--frames", "1-6", "--objects", handle, "--output", out]) == 0
     printed = capsys.readouterr().out
     assert "frame 6/6" in printed and "saved" in printed
     bpy.ops.wm.open_mainfile(filepath=out)
