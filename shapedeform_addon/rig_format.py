@@ -318,14 +318,18 @@ def require_local(obj, action):
 
 
 def is_baked(obj):
-    """Whether the owner ``obj`` plays a bake (the live rig then leaves it alone). The cage's
-    shape keys say so too: a library override keeps them with its local cage mesh, but not the
-    owner's ID properties."""
-    if BAKED in obj.shapedeform:
-        return True
+    """Whether the owner ``obj`` plays a bake (the live rig then leaves it alone).
+
+    A bake is the cage's shape keys, so they decide: a library override keeps them with its
+    local cage mesh, but its owner's ID properties come back from the library on reopening
+    (a Clear Bake made in the shot would otherwise leave the ``BAKED`` mark of the library's
+    bake over a cage with no keys, and the rig frozen). Keys of a bake from before the Key was
+    marked count where the owner has the mark."""
     cage = obj.shapedeform.cage
     keys = cage.data.shape_keys if cage is not None else None
-    return keys is not None and bool(keys.get(BAKE_MARK))
+    if keys is None:
+        return False
+    return bool(keys.get(BAKE_MARK)) or (BAKED in obj.shapedeform and len(keys.key_blocks) > 1)
 
 
 def owners(scene):

@@ -859,6 +859,20 @@ def character_collection(tmp_path):
     return character, obj
 
 
+def override_in_a_new_shot(library):
+    """Link the "Character" collection of ``library`` into a new empty file and make it a
+    library override, as Make Library Override does; returns the override of "Grid"."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    with bpy.data.libraries.load(library, link=True) as (_, linked):
+        linked.collections = ["Character"]
+    scene = bpy.context.scene
+    linked.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)
+    bpy.context.view_layer.update()
+    obj = next(o for o in scene.objects if o.name == "Grid")
+    assert obj.override_library is not None
+    return obj
+
+
 def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon, tmp_path, quiet):
     """The usual way to animate a linked character: link its collection into a shot, make a
     library override, move and key its handles, bake on the farm. The rig poses (its cage takes
@@ -873,14 +887,8 @@ def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon,
     bpy.ops.wm.save_as_mainfile(filepath=library)
     rest = evaluated(obj)
 
-    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    with bpy.data.libraries.load(library, link=True) as (_, linked):
-        linked.collections = ["Character"]
+    obj = override_in_a_new_shot(library)
     scene = bpy.context.scene
-    linked.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)  # as Make Library Override
-    bpy.context.view_layer.update()
-    obj = next(o for o in scene.objects if o.name == "Grid")
-    assert obj.override_library is not None
     handle = obj.shapedeform.handles[1].object
     assert handle.override_library is not None
     # Its handle list and collections are the library's: changing the rig is refused by name,
@@ -919,6 +927,38 @@ def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon,
     obj = next(o for o in bpy.context.scene.objects if o.name == "Grid")
     assert addon.shapedeform_addon.rig_format.is_baked(obj)
     assert_plays_without_extension(lambda: evaluated(obj), expected, frames=(1, 6))
+
+
+def test_clearing_a_library_bake_in_the_shot_lasts_after_reopening(addon, tmp_path, quiet):
+    """A character baked in its own file, overridden in a shot, its bake cleared there and its
+    handle keyed: after reopening, the rig poses (the library's bake mark came back with the
+    owner's properties and froze the rig, over a cage with no keys, with no message)."""
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bake() == {"FINISHED"}
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+
+    obj = override_in_a_new_shot(library)
+    rig_format = addon.shapedeform_addon.rig_format
+    assert rig_format.is_baked(obj)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+    handle = obj.shapedeform.handles[1].object
+    handle.keyframe_insert("location", frame=1)
+    handle.location.y += 0.8
+    handle.keyframe_insert("location", frame=6)
+    shot = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    obj = next(o for o in bpy.context.scene.objects if o.name == "Grid")
+    assert not rig_format.is_baked(obj)
+    scene = bpy.context.scene
+    scene.frame_set(1)
+    first = evaluated(obj).copy()
+    scene.frame_set(6)
+    assert np.abs(evaluated(obj) - first).max() > 0.3
 
 
 # -- a rigged character instanced in another scene --------------------------------------------
