@@ -75,13 +75,9 @@ class Rig:
 
     def frames(self, obj, depsgraph=None):
         """Each handle's 2D frame in the shape's plane, (h, 3, 3), from evaluated transforms."""
-        def world(o):
-            o = o.evaluated_get(depsgraph) if depsgraph is not None else o
-            return np.array(o.matrix_world, dtype=np.float64)
-
-        cage = obj.shapedeform.cage
-        to_rig = affine_inverse(world(cage))  # an object scaled to zero keeps its other axes
-        return np.array([frame_2d(self.plane, to_rig @ world(h)) for h in self.handle_objects]).reshape(-1, 3, 3)
+        cage = _evaluated(obj.shapedeform.cage, depsgraph)
+        handles = [_evaluated(h, depsgraph) for h in self.handle_objects]
+        return np.array([frame_2d(self.plane, _relative(h, cage)) for h in handles]).reshape(-1, 3, 3)
 
     def solve(self, frames, iterations):
         """Graph positions (n, 2) for handle frames (h, 3, 3); ``settled`` tells whether the
@@ -159,6 +155,27 @@ def forget(obj=None):
         _cache.clear()
     else:
         _cache.pop(obj.original.session_uid, None)
+
+
+def _evaluated(obj, depsgraph):
+    return obj.evaluated_get(depsgraph) if depsgraph is not None else obj
+
+
+def _relative(obj, space):
+    """The transform (4, 4) of ``obj`` in the space of object ``space``.
+
+    Handles and the cage are children of the rig's owner: where neither has constraints, the
+    product of their own transforms gives it without the owner's, which an owner scaled to zero
+    along an axis in the plane (a card flip) cannot be inverted to recover (its least-squares
+    inverse put every handle on one line)."""
+    def own(o):
+        return np.array(o.matrix_parent_inverse, dtype=np.float64) @ np.array(o.matrix_basis, dtype=np.float64)
+
+    if (obj.parent is not None and obj.parent == space.parent and obj.parent_type == space.parent_type == "OBJECT"
+            and not any(c.enabled for c in obj.constraints) and not any(c.enabled for c in space.constraints)):
+        return affine_inverse(own(space)) @ own(obj)
+    # An object scaled to zero keeps its other axes.
+    return affine_inverse(np.array(space.matrix_world, dtype=np.float64)) @ np.array(obj.matrix_world, dtype=np.float64)
 
 
 def final_quality():

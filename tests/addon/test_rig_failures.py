@@ -74,6 +74,28 @@ def test_an_object_scaled_to_zero_poses_bakes_and_comes_back(addon, quiet):
         bpy.ops.shapedeform.add_handle(location=(0.0, 0.0, 0.0))
 
 
+@pytest.mark.parametrize("axis", [0, 1])
+def test_a_card_flip_through_zero_scale_keeps_the_pose(addon, axis):
+    """Scaling the object to 0 along an axis of its plane (a card flip) collapses that axis and
+    nothing else: the rig's pose is the same as at full scale (handles mapped through the
+    owner's least-squares inverse all fell on one line, and the shape jumped by up to 3.6)."""
+    obj, _, handle = rig_with_two_handles()
+    handle.location.y += 0.5
+    handle.rotation_euler.z += 0.4
+    bpy.context.view_layer.update()
+
+    def cage_points():
+        cage = obj.shapedeform.cage.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        return np.array([v.co for v in cage.data.vertices])
+
+    full = cage_points()
+    for scale in (0.0, -1.0):
+        obj.scale[axis] = scale
+        bpy.context.view_layer.update()
+        assert obj.shapedeform.status == ""
+        np.testing.assert_allclose(cage_points(), full, atol=1e-5)
+
+
 def test_applying_the_modifier_says_the_handles_no_longer_move_it_and_unbind_keeps_the_shape(addon, quiet):
     """Apply the Shape Deform modifier (or convert the object, which applies it): the posed
     shape becomes the object's own, the sidebar says the handles no longer move it (they did
