@@ -37,6 +37,7 @@ class Rig:
         settings = obj.shapedeform
         if settings.cage is None or not len(settings.cage.data.vertices):
             raise RigError(f"'{obj.name}' lost its cage; unbind it and bind it again")
+        rig_format.follow_library_cage(settings.cage)
         self.coarse_copies = previous.coarse_copies if previous is not None else solver.CoarseCopies()
         self.plane, self.graph = rig_format.read_graph(obj)
         if len(settings.cage.data.vertices) != self.graph.n:

@@ -22,7 +22,8 @@ The cage, a mesh object parented to the owner (or copying its transform) and hid
     space when it was bound), its point attribute ``sd_rest`` the rest, ``shapedeform.rig``
     the owner. A bake is shape keys on its mesh, its Key marked ``shapedeform_bake``
     (:mod:`.bake`). In a library override of a rigged character the cage's mesh is a local
-    copy of the library's, made the first time the rig poses.
+    copy of the library's, made the first time the rig poses and again when the library's rig
+    was bound anew (:func:`follow_library_cage`).
 Every object the rig deforms (the owner, and duplicates of it):
     a Geometry Nodes modifier with the group of :mod:`.nodes`, whose inputs name the cage,
     the owner, the handle collection and the layer attribute.
@@ -165,11 +166,35 @@ def write_pose(cage, points):
     return True
 
 
-def _cage_points(cage, data, name="vector"):
-    """Points (n, 3) float32 of ``cage`` from ``data`` (an attribute's or a shape key's)."""
-    flat = np.empty(len(cage.data.vertices) * 3, dtype=np.float32)
+def follow_library_cage(cage):
+    """On a library override whose cage has its local copy of the library's mesh: when the
+    library's rig was bound again (its cage's rest differs from the copy's), point the cage back
+    at the library's mesh, so the next pose copies it afresh. The owner's graph comes back from
+    the library on reopening; the stale copy no longer fitted it, and nothing in the shot could
+    replace it (unbind is the library's)."""
+    reference = cage.override_library.reference if cage.override_library is not None else None
+    if reference is None or reference.data is None or cage.data.library is not None:
+        return
+    library_mesh, copy = reference.data, cage.data
+    if library_mesh == copy or nodes.REST not in library_mesh.attributes:
+        return
+    if (nodes.REST in copy.attributes and len(library_mesh.vertices) == len(copy.vertices)
+            and np.array_equal(_points(library_mesh, library_mesh.attributes[nodes.REST].data),
+                               _points(copy, copy.attributes[nodes.REST].data))):
+        return
+    cage.data = library_mesh
+
+
+def _points(mesh, data, name="vector"):
+    """Points (n, 3) float32 of ``mesh`` from ``data`` (an attribute's or a shape key's)."""
+    flat = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
     data.foreach_get(name, flat)
     return flat.reshape(-1, 3)
+
+
+def _cage_points(cage, data, name="vector"):
+    """Points (n, 3) float32 of ``cage`` from ``data`` (an attribute's or a shape key's)."""
+    return _points(cage.data, data, name)
 
 
 def shown_pose(cage):

@@ -929,6 +929,43 @@ def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon,
     assert_plays_without_extension(lambda: evaluated(obj), expected, frames=(1, 6))
 
 
+def test_a_character_bound_again_in_its_file_poses_again_in_the_shot(addon, tmp_path, quiet):
+    """Unbind and bind again (another graph) in the character's file: the shot's override,
+    reopened, poses with the new rig (its local copy of the old cage no longer fitted the new
+    graph; the rig said the cage was edited and to unbind, which the shot refuses)."""
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    obj = override_in_a_new_shot(library)
+    handle = obj.shapedeform.handles[1].object
+    handle.location.y += 0.4
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.cage.data.library is None  # the shot's copy
+    shot = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+
+    bpy.ops.wm.open_mainfile(filepath=library)
+    obj = bpy.data.objects["Grid"]
+    count = len(obj.shapedeform.cage.data.vertices)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    obj.shapedeform.graph_mode, obj.shapedeform.density = "OUTLINE", 60
+    Rigged(obj)
+    assert len(obj.shapedeform.cage.data.vertices) != count
+    bpy.ops.wm.save_mainfile()
+
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    obj = next(o for o in bpy.context.scene.objects if o.name == "Grid")
+    rest = obj.data.vertices  # the override's mesh, which the rig never writes
+    rest = np.array([v.co for v in rest])
+    handle = obj.shapedeform.handles[1].object
+    handle.location.y += 0.4
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    assert np.abs(evaluated(obj) - rest).max() > 0.2
+
+
 def test_clearing_a_library_bake_in_the_shot_lasts_after_reopening(addon, tmp_path, quiet):
     """A character baked in its own file, overridden in a shot, its bake cleared there and its
     handle keyed: after reopening, the rig poses (the library's bake mark came back with the
