@@ -8,7 +8,9 @@ drawing) by the affine map of the nearest rest triangle: the map that takes that
 rest corners to its posed corners and keeps the distance from the plane. Inside the outline
 this is the barycentric interpolation of the posed cage; outside it, the nearest triangle's map
 carried on, so points off the cage (outside the outline, lifted by a shape key) move with the
-part they belong to instead of sticking to its border.
+part they belong to instead of sticking to its border. (``solver.bind`` blends the maps of the
+triangles along the nearest stretch of boundary instead; a node tree cannot afford that per
+point, so here a point in a notch between two parts follows the nearer one.)
 
 Rig space: the cage's points are in the space the rig was bound in (the bound object's local
 space at bind time). The cage object is parented to the bound object, so Apply Transform on it
@@ -132,7 +134,28 @@ class _Builder:
 
 
 def _build(group):
+    """Fill ``group`` with the deformer: the stages below, in the order the geometry meets them."""
     group.nodes.clear()
+    _interface(group)
+    b = _Builder(group)
+    given = b.node("NodeGroupInput")
+    geometry = b.node("GeometryNodeSubdivideMesh", {"Mesh": given.outputs[0], "Level": given.outputs[REFINE_INPUT]}).outputs[0]
+    cage = _Cage(b, given.outputs[CAGE_INPUT], given.outputs[OWNER_INPUT])
+    selection = _rigged_selection(b, given.outputs[RIGGED_INPUT])
+    curves = _map_bezier_handles(b, cage, geometry, selection)
+    moved = _map_points(b, cage, curves, selection)
+    ordered = _stroke_order(b, cage, moved, given.outputs[ORDER_INPUT])
+    # No cage (deleted by hand, or no faces): the geometry passes unchanged.
+    faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.geometry}, component="MESH")
+    has_cage = b.node("FunctionNodeCompare", {"A": faces.outputs["Face Count"], "B": 0},
+                      data_type="INT", operation="GREATER_THAN").outputs[0]
+    switch = b.node("GeometryNodeSwitch", {"Switch": has_cage, "False": given.outputs[0], "True": ordered},
+                    input_type="GEOMETRY")
+    b.node("NodeGroupOutput", {0: switch.outputs[0]})
+
+
+def _interface(group):
+    """The group's inputs and output, with the descriptions the modifier shows."""
     group.interface.clear()
     group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     group.interface.new_socket(CAGE_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
@@ -153,92 +176,120 @@ def _build(group):
     handles.description = ("The rig's handles: named here so Blender evaluates them wherever this object is "
                            "evaluated, even where their collection is hidden")
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
-    b = _Builder(group)
-    given = b.node("NodeGroupInput")
-    cage_object, owner_object, rigged_name = (given.outputs[name] for name in (CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT))
-    geometry = b.node("GeometryNodeSubdivideMesh", {"Mesh": given.outputs[0], "Level": given.outputs[REFINE_INPUT]}).outputs[0]
 
-    # The cage in the deformed object's space: posed positions, and the rest as positions.
-    cage = b.node("GeometryNodeObjectInfo", {"Object": cage_object}, transform_space="ORIGINAL")
-    owner = b.node("GeometryNodeObjectInfo", {"Object": owner_object}, transform_space="ORIGINAL")
-    inverse_owner = b.node("FunctionNodeInvertMatrix", [owner.outputs["Transform"]]).outputs[0]
-    to_object = b.node("FunctionNodeMatrixMultiply", [inverse_owner, cage.outputs["Transform"]]).outputs[0]
-    position = b.node("GeometryNodeInputPosition").outputs[0]
-    rest = b.node("GeometryNodeInputNamedAttribute", {"Name": REST}, data_type="FLOAT_VECTOR").outputs[0]
-    posed_here = b.node("FunctionNodeTransformPoint", [position, to_object]).outputs[0]
-    rest_here = b.node("FunctionNodeTransformPoint", [rest, to_object]).outputs[0]
-    stored = b.node("GeometryNodeStoreNamedAttribute",
-                    {"Geometry": cage.outputs["Geometry"], "Name": POSED, "Value": posed_here},
-                    data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
-    rest_cage = b.node("GeometryNodeSetPosition", {"Geometry": stored, "Position": rest_here}).outputs[0]
 
-    # Each triangle's affine map (a face field): rest corners -> posed corners, the rest
-    # normal kept, so heights above the plane are kept.
-    posed = b.node("GeometryNodeInputNamedAttribute", {"Name": POSED}, data_type="FLOAT_VECTOR").outputs[0]
-    rest_corners, posed_corners = [], []
-    for k in range(3):
-        corner = b.node("GeometryNodeCornersOfFace", {"Sort Index": k}).outputs["Corner Index"]
-        vertex = b.node("GeometryNodeVertexOfCorner", [corner]).outputs[0]
-        for field, corners in ((position, rest_corners), (posed, posed_corners)):
-            corners.append(b.node("GeometryNodeSampleIndex", {"Geometry": rest_cage, "Value": field, "Index": vertex},
-                                  data_type="FLOAT_VECTOR", domain="POINT").outputs[0])
-    e1, e2 = (b.math("SUBTRACT", r, rest_corners[0]) for r in rest_corners[1:])
-    f1, f2 = (b.math("SUBTRACT", p, posed_corners[0]) for p in posed_corners[1:])
-    normal = b.math("NORMALIZE", b.math("CROSS_PRODUCT", e1, e2))
-    rest_frame = b.columns_matrix(e1, e2, normal, rest_corners[0])
-    posed_frame = b.columns_matrix(f1, f2, normal, posed_corners[0])
-    inverse_rest = b.node("FunctionNodeInvertMatrix", [rest_frame]).outputs[0]
-    face_map = b.node("FunctionNodeMatrixMultiply", [posed_frame, inverse_rest]).outputs[0]
+class _Cage:
+    """The cage in the deformed object's space, and the fields every stage samples it by.
 
-    def mapped(point):
+    Attributes (node sockets): ``geometry`` the cage as its object gives it; ``rest`` the cage
+    at rest, its posed points kept in the ``POSED`` attribute; ``position`` and ``posed`` the
+    position and posed-position fields; ``face_map`` each triangle's affine map, rest corners to
+    posed corners with the rest normal kept (so heights above the plane are kept); ``normal``
+    the rest plane's normal; ``span`` the rest cage's extent in its plane, and ``corner`` its
+    lowest corner there (the UV square's origin).
+    """
+
+    def __init__(self, b, cage_object, owner_object):
+        self.b = b
+        cage = b.node("GeometryNodeObjectInfo", {"Object": cage_object}, transform_space="ORIGINAL")
+        owner = b.node("GeometryNodeObjectInfo", {"Object": owner_object}, transform_space="ORIGINAL")
+        inverse_owner = b.node("FunctionNodeInvertMatrix", [owner.outputs["Transform"]]).outputs[0]
+        to_object = b.node("FunctionNodeMatrixMultiply", [inverse_owner, cage.outputs["Transform"]]).outputs[0]
+        self.geometry = cage.outputs["Geometry"]
+        position = self.position = b.node("GeometryNodeInputPosition").outputs[0]
+        rest = b.node("GeometryNodeInputNamedAttribute", {"Name": REST}, data_type="FLOAT_VECTOR").outputs[0]
+        posed_here = b.node("FunctionNodeTransformPoint", [position, to_object]).outputs[0]
+        rest_here = b.node("FunctionNodeTransformPoint", [rest, to_object]).outputs[0]
+        stored = b.node("GeometryNodeStoreNamedAttribute",
+                        {"Geometry": self.geometry, "Name": POSED, "Value": posed_here},
+                        data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
+        self.rest = b.node("GeometryNodeSetPosition", {"Geometry": stored, "Position": rest_here}).outputs[0]
+        self.posed = b.node("GeometryNodeInputNamedAttribute", {"Name": POSED}, data_type="FLOAT_VECTOR").outputs[0]
+        self.face_map = self._face_maps()
+        self._plane()
+
+    def _face_maps(self):
+        b, position, posed = self.b, self.position, self.posed
+        rest_corners, posed_corners = [], []
+        for k in range(3):
+            corner = b.node("GeometryNodeCornersOfFace", {"Sort Index": k}).outputs["Corner Index"]
+            vertex = b.node("GeometryNodeVertexOfCorner", [corner]).outputs[0]
+            for field, corners in ((position, rest_corners), (posed, posed_corners)):
+                corners.append(b.node("GeometryNodeSampleIndex", {"Geometry": self.rest, "Value": field, "Index": vertex},
+                                      data_type="FLOAT_VECTOR", domain="POINT").outputs[0])
+        e1, e2 = (b.math("SUBTRACT", r, rest_corners[0]) for r in rest_corners[1:])
+        f1, f2 = (b.math("SUBTRACT", p, posed_corners[0]) for p in posed_corners[1:])
+        normal = b.math("NORMALIZE", b.math("CROSS_PRODUCT", e1, e2))
+        rest_frame = b.columns_matrix(e1, e2, normal, rest_corners[0])
+        posed_frame = b.columns_matrix(f1, f2, normal, posed_corners[0])
+        inverse_rest = b.node("FunctionNodeInvertMatrix", [rest_frame]).outputs[0]
+        return b.node("FunctionNodeMatrixMultiply", [posed_frame, inverse_rest]).outputs[0]
+
+    def _plane(self):
+        # The rig's plane, turned onto XY, gives the UVs; the rest cage's first face has its
+        # normal (every face has the same: the rest cage is flat).
+        b = self.b
+        self.normal = b.node("GeometryNodeSampleIndex",
+                             {"Geometry": self.rest, "Value": b.node("GeometryNodeInputNormal").outputs[0], "Index": 0},
+                             data_type="FLOAT_VECTOR", domain="FACE").outputs[0]
+        self._onto_plane = b.node("FunctionNodeInvertRotation", [b.node(
+            "FunctionNodeAlignRotationToVector", {"Vector": self.normal}, axis="Z").outputs[0]]).outputs[0]
+        flat_cage = b.node("GeometryNodeSetPosition",
+                           {"Geometry": self.rest, "Position": self.in_plane(self.position)}).outputs[0]
+        box = b.node("GeometryNodeBoundBox", [flat_cage])
+        self.corner = box.outputs["Min"]
+        self.span = b.math("SUBTRACT", box.outputs["Max"], self.corner)
+
+    def in_plane(self, point):
+        """``point`` turned so that the rig's plane is XY."""
+        return self.b.node("FunctionNodeRotateVector", [point, self._onto_plane]).outputs[0]
+
+    def uv(self, point):
+        """``point``'s place in the rest cage's bounding square, in the plane: the cage's UVs."""
+        b = self.b
+        return b.math("DIVIDE", b.math("SUBTRACT", self.in_plane(point), self.corner), self.span)
+
+    def mapped(self, point):
         """``point`` (a field on the deformed geometry) through its nearest triangle's map."""
-        face = b.node("GeometryNodeSampleNearest", {"Geometry": rest_cage, "Sample Position": point},
+        b = self.b
+        face = b.node("GeometryNodeSampleNearest", {"Geometry": self.rest, "Sample Position": point},
                       domain="FACE").outputs[0]
-        matrix = b.node("GeometryNodeSampleIndex", {"Geometry": rest_cage, "Value": face_map, "Index": face},
+        matrix = b.node("GeometryNodeSampleIndex", {"Geometry": self.rest, "Value": self.face_map, "Index": face},
                         data_type="FLOAT4X4", domain="FACE").outputs[0]
         return b.node("FunctionNodeTransformPoint", [point, matrix]).outputs[0]
 
+
+def _rigged_selection(b, rigged_name):
+    """True where the rig deforms: everywhere, or on the layers marked ``rigged_name``."""
     rigged = b.node("GeometryNodeInputNamedAttribute", {"Name": rigged_name}, data_type="BOOLEAN")
     unmarked = b.node("FunctionNodeBooleanMath", [rigged.outputs["Exists"]], operation="NOT").outputs[0]
-    selection = b.node("FunctionNodeBooleanMath", [unmarked, rigged.outputs[0]], operation="OR").outputs[0]
+    return b.node("FunctionNodeBooleanMath", [unmarked, rigged.outputs[0]], operation="OR").outputs[0]
 
-    # Bezier handles are mapped from where they are, then set FREE so Blender does not derive
-    # them again from the moved control points; Set Position leaves handles that are set.
+
+def _map_bezier_handles(b, cage, geometry, selection):
+    """Bezier handles mapped from where they are, then set FREE so Blender does not derive them
+    again from the moved control points (Set Position leaves handles that are set)."""
     handles = b.node("GeometryNodeInputCurveHandlePositions")
     free = b.node("GeometryNodeCurveSetHandles", {"Curve": geometry, "Selection": selection},
                   handle_type="FREE", mode={"LEFT", "RIGHT"})
     left = b.node("GeometryNodeSetCurveHandlePositions",
-                  {"Curve": free.outputs[0], "Selection": selection, "Position": mapped(handles.outputs["Left"])},
+                  {"Curve": free.outputs[0], "Selection": selection, "Position": cage.mapped(handles.outputs["Left"])},
                   mode="LEFT")
-    right = b.node("GeometryNodeSetCurveHandlePositions",
-                   {"Curve": left.outputs[0], "Selection": selection, "Position": mapped(handles.outputs["Right"])},
-                   mode="RIGHT")
+    return b.node("GeometryNodeSetCurveHandlePositions",
+                  {"Curve": left.outputs[0], "Selection": selection, "Position": cage.mapped(handles.outputs["Right"])},
+                  mode="RIGHT").outputs[0]
 
-    # Points inside the cage: its displacement sampled at their UV (see the module docstring).
-    # The rig's plane, turned onto XY, gives the UVs; the rest cage's first face has its normal
-    # (every face has the same: the rest cage is flat).
-    plane_normal = b.node("GeometryNodeSampleIndex",
-                          {"Geometry": rest_cage, "Value": b.node("GeometryNodeInputNormal").outputs[0], "Index": 0},
-                          data_type="FLOAT_VECTOR", domain="FACE").outputs[0]
-    onto_plane = b.node("FunctionNodeInvertRotation",
-                        [b.node("FunctionNodeAlignRotationToVector", {"Vector": plane_normal}, axis="Z").outputs[0]]).outputs[0]
 
-    def in_plane(point):
-        return b.node("FunctionNodeRotateVector", [point, onto_plane]).outputs[0]
-
-    flat_cage = b.node("GeometryNodeSetPosition", {"Geometry": rest_cage, "Position": in_plane(position)}).outputs[0]
-    box = b.node("GeometryNodeBoundBox", [flat_cage])
-    span = b.math("SUBTRACT", box.outputs["Max"], box.outputs["Min"])
-
-    def uv(point):
-        return b.math("DIVIDE", b.math("SUBTRACT", in_plane(point), box.outputs["Min"]), span)
-
+def _map_points(b, cage, geometry, selection):
+    """Every point moved: inside the cage by its displacement sampled at the point's UV (see
+    the module docstring), elsewhere through its nearest triangle's map."""
+    group, position = b.group, cage.position
     displacement = b.node("GeometryNodeSampleUVSurface",
-                          {"Mesh": rest_cage, "Value": b.math("SUBTRACT", posed, position),
-                           "UV Map": uv(position), "Sample UV": uv(position)},
+                          {"Mesh": cage.rest, "Value": b.math("SUBTRACT", cage.posed, position),
+                           "UV Map": cage.uv(position), "Sample UV": cage.uv(position)},
                           data_type="FLOAT_VECTOR")
     # Captured once for every point, so the search below runs only where the lookup missed.
-    captured = b.node("GeometryNodeCaptureAttribute", {"Geometry": right.outputs[0]}, domain="POINT")
+    captured = b.node("GeometryNodeCaptureAttribute", {"Geometry": geometry}, domain="POINT")
     captured.capture_items.new("BOOLEAN", "Inside")
     captured.capture_items.new("VECTOR", "Moved")
     # By name: Blender 5.2 added a Selection input before the captured items.
@@ -249,29 +300,36 @@ def _build(group):
     outside = b.node("FunctionNodeBooleanMath", [selection, inside], operation="NIMPLY").outputs[0]
     looked_up = b.node("GeometryNodeSetPosition",
                        {"Geometry": captured.outputs[0], "Selection": both, "Position": moved_inside})
-    moved = b.node("GeometryNodeSetPosition",
-                   {"Geometry": looked_up.outputs[0], "Selection": outside, "Position": mapped(position)})
+    return b.node("GeometryNodeSetPosition",
+                  {"Geometry": looked_up.outputs[0], "Selection": outside, "Position": cage.mapped(position)}).outputs[0]
 
-    # Grease pencil draws strokes in their order within a layer. Where the pose folds the shape
-    # over itself, the strokes lying on the folded-over part must draw after the ones under it;
-    # everywhere else the drawing's own order stands (a face's fill under its eyes, say, even
-    # where the face moved further than the eyes). A ray from behind along the plane's normal
-    # through the posed cage finds the lowest layer at each point, one from the front the
-    # highest: the point lies over a fold when it is higher than the lowest, under one when it
-    # is lower than the highest. A stroke most of whose points lie over a fold sorts after the
-    # others, one most of whose points lie under a fold before them (an arm an overlap pin puts
-    # behind a body drawn as one large stroke), each group keeping its order (Sort Elements is
-    # stable). A stroke the fold laid partly over itself (a head's fill with its ears) cannot be
-    # split, and stays where most of it lies.
-    cage_size = b.node("ShaderNodeVectorMath", [span], operation="LENGTH").outputs["Value"]  # in its plane
-    posed_cage = b.node("GeometryNodeSetPosition", {"Geometry": rest_cage, "Position": posed}).outputs[0]
-    height = b.node("ShaderNodeVectorMath", [position, plane_normal], operation="DOT_PRODUCT").outputs["Value"]
-    below = b.node("ShaderNodeVectorMath", {"Vector": plane_normal, "Scale": b.node(
+
+def _stroke_order(b, cage, moved, enabled):
+    """With ``enabled`` and grease pencil in ``moved``: strokes over a fold drawn last, under one
+    first.
+
+    Grease pencil draws strokes in their order within a layer. Where the pose folds the shape
+    over itself, the strokes lying on the folded-over part must draw after the ones under it;
+    everywhere else the drawing's own order stands (a face's fill under its eyes, say, even
+    where the face moved further than the eyes). A ray from behind along the plane's normal
+    through the posed cage finds the lowest layer at each point, one from the front the
+    highest: the point lies over a fold when it is higher than the lowest, under one when it
+    is lower than the highest. A stroke most of whose points lie over a fold sorts after the
+    others, one most of whose points lie under a fold before them (an arm an overlap pin puts
+    behind a body drawn as one large stroke), each group keeping its order (Sort Elements is
+    stable). A stroke the fold laid partly over itself (a head's fill with its ears) cannot be
+    split, and stays where most of it lies.
+    """
+    position, normal = cage.position, cage.normal
+    cage_size = b.node("ShaderNodeVectorMath", [cage.span], operation="LENGTH").outputs["Value"]  # in its plane
+    posed_cage = b.node("GeometryNodeSetPosition", {"Geometry": cage.rest, "Position": cage.posed}).outputs[0]
+    height = b.node("ShaderNodeVectorMath", [position, normal], operation="DOT_PRODUCT").outputs["Value"]
+    below = b.node("ShaderNodeVectorMath", {"Vector": normal, "Scale": b.node(
         "ShaderNodeMath", [cage_size, -2.0], operation="MULTIPLY").outputs[0]}, operation="SCALE").outputs[0]
     reach = b.node("ShaderNodeMath", [cage_size, 4.0], operation="MULTIPLY").outputs[0]
     ray = b.node("GeometryNodeRaycast", {"Target Geometry": posed_cage, "Source Position": b.math("ADD", position, below),
-                                         "Ray Direction": plane_normal, "Ray Length": reach})
-    lowest = b.node("ShaderNodeVectorMath", [ray.outputs["Hit Position"], plane_normal],
+                                         "Ray Direction": normal, "Ray Length": reach})
+    lowest = b.node("ShaderNodeVectorMath", [ray.outputs["Hit Position"], normal],
                     operation="DOT_PRODUCT").outputs["Value"]
     # A ten-thousandth of the cage's size: far above rounding where the point and the layer
     # under it are the same, below the lift between the layers of any fold whose top moved a
@@ -281,65 +339,65 @@ def _build(group):
     higher = b.node("FunctionNodeCompare", {"A": above, "B": margin}, data_type="FLOAT",
                     operation="GREATER_THAN").outputs[0]
     over_fold = b.node("FunctionNodeBooleanMath", [ray.outputs["Is Hit"], higher], operation="AND").outputs[0]
-    down = b.node("ShaderNodeVectorMath", {"Vector": plane_normal, "Scale": -1.0}, operation="SCALE").outputs[0]
+    down = b.node("ShaderNodeVectorMath", {"Vector": normal, "Scale": -1.0}, operation="SCALE").outputs[0]
     from_front = b.node("GeometryNodeRaycast", {"Target Geometry": posed_cage,
                                                 "Source Position": b.math("SUBTRACT", position, below),
                                                 "Ray Direction": down, "Ray Length": reach})
-    highest = b.node("ShaderNodeVectorMath", [from_front.outputs["Hit Position"], plane_normal],
+    highest = b.node("ShaderNodeVectorMath", [from_front.outputs["Hit Position"], normal],
                      operation="DOT_PRODUCT").outputs["Value"]
     beneath = b.node("ShaderNodeMath", [highest, height], operation="SUBTRACT").outputs[0]
     lower = b.node("FunctionNodeCompare", {"A": beneath, "B": margin}, data_type="FLOAT",
                    operation="GREATER_THAN").outputs[0]
     under_fold = b.node("FunctionNodeBooleanMath", [from_front.outputs["Is Hit"], lower], operation="AND").outputs[0]
+    sort_weight = b.node("ShaderNodeMath", [_stroke_share(b, over_fold), _stroke_share(b, under_fold)],
+                         operation="SUBTRACT").outputs[0]
+    parts = b.node("GeometryNodeSeparateComponents", [moved])
+    drawings = _sorted_drawings(b, parts.outputs["Grease Pencil"], sort_weight)
+    joined = b.node("GeometryNodeJoinGeometry")
+    for name in ("Mesh", "Curve", "Point Cloud", "Volume", "Instances"):
+        b.group.links.new(parts.outputs[name], joined.inputs[0])
+    b.group.links.new(drawings, joined.inputs[0])
+    has_drawings = b.node("GeometryNodeAttributeDomainSize", {"Geometry": parts.outputs["Grease Pencil"]},
+                          component="GREASEPENCIL").outputs["Layer Count"]
+    reorder = b.node("FunctionNodeBooleanMath", [enabled, b.node(
+        "FunctionNodeCompare", {"A": has_drawings, "B": 0}, data_type="INT", operation="GREATER_THAN").outputs[0]],
+        operation="AND").outputs[0]
+    return b.node("GeometryNodeSwitch", {"Switch": reorder, "False": moved, "True": joined.outputs[0]},
+                  input_type="GEOMETRY").outputs[0]
 
-    def share(point_test):
-        """The share of each stroke's points passing ``point_test``, over 0.5: evaluated at each
-        point as a number, then averaged over the stroke (on the curve domain alone the test
-        would run once, at the stroke's mean position; as a boolean, the points would be
-        combined as booleans, not counted)."""
-        each = b.node("GeometryNodeFieldOnDomain", {"Value": point_test}, domain="POINT", data_type="FLOAT").outputs[0]
-        mean = b.node("GeometryNodeFieldOnDomain", {"Value": each}, domain="CURVE", data_type="FLOAT").outputs[0]
-        return b.node("FunctionNodeCompare", {"A": mean, "B": 0.5}, data_type="FLOAT",
-                      operation="GREATER_THAN").outputs[0]
 
-    sort_weight = b.node("ShaderNodeMath", [share(over_fold), share(under_fold)], operation="SUBTRACT").outputs[0]
-    parts = b.node("GeometryNodeSeparateComponents", [moved.outputs[0]])
-    as_curves = b.node("GeometryNodeGreasePencilToCurves", {"Grease Pencil": parts.outputs["Grease Pencil"],
+def _stroke_share(b, point_test):
+    """Whether more than half of each stroke's points pass ``point_test``: evaluated at each
+    point as a number, then averaged over the stroke (on the curve domain alone the test would
+    run once, at the stroke's mean position; as a boolean, the points would be combined as
+    booleans, not counted)."""
+    each = b.node("GeometryNodeFieldOnDomain", {"Value": point_test}, domain="POINT", data_type="FLOAT").outputs[0]
+    mean = b.node("GeometryNodeFieldOnDomain", {"Value": each}, domain="CURVE", data_type="FLOAT").outputs[0]
+    return b.node("FunctionNodeCompare", {"A": mean, "B": 0.5}, data_type="FLOAT",
+                  operation="GREATER_THAN").outputs[0]
+
+
+def _sorted_drawings(b, drawings, sort_weight):
+    """``drawings`` with each layer's strokes sorted by ``sort_weight``, materials kept.
+
+    Sort Elements drops the curves' material list when it reorders (Blender 4.5-5.2), leaving
+    the material indices pointing at nothing: the strokes would render in the default material.
+    Joined with the original's layers (emptied and marked), the drawing gets the original's
+    material list, which the indices point into; the marked layers then go.
+    """
+    as_curves = b.node("GeometryNodeGreasePencilToCurves", {"Grease Pencil": drawings,
                                                              "Layers as Instances": True}).outputs[0]
     in_order = b.node("GeometryNodeSortElements", {"Geometry": as_curves, "Sort Weight": sort_weight},
                       domain="CURVE").outputs[0]
     sorted_drawings = b.node("GeometryNodeCurvesToGreasePencil",
                              {"Curves": in_order, "Instances as Layers": True}).outputs[0]
-    # Sort Elements drops the curves' material list when it reorders (Blender 4.5-5.2), leaving
-    # the material indices pointing at nothing: the strokes would render in the default
-    # material. Joined with the original's layers (emptied and marked), the drawing gets the
-    # original's material list, which the indices point into; the marked layers then go.
-    emptied = b.node("GeometryNodeDeleteGeometry", {"Geometry": parts.outputs["Grease Pencil"]}, domain="CURVE")
+    emptied = b.node("GeometryNodeDeleteGeometry", {"Geometry": drawings}, domain="CURVE")
     marked = b.node("GeometryNodeStoreNamedAttribute", {"Geometry": emptied.outputs[0], "Name": SCAFFOLD,
                                                         "Value": True}, domain="LAYER", data_type="BOOLEAN")
     with_materials = b.node("GeometryNodeJoinGeometry")
-    group.links.new(sorted_drawings, with_materials.inputs[0])
-    group.links.new(marked.outputs[0], with_materials.inputs[0])
+    b.group.links.new(sorted_drawings, with_materials.inputs[0])
+    b.group.links.new(marked.outputs[0], with_materials.inputs[0])
     scaffold = b.node("GeometryNodeInputNamedAttribute", {"Name": SCAFFOLD}, data_type="BOOLEAN").outputs["Attribute"]
     kept = b.node("GeometryNodeDeleteGeometry", {"Geometry": with_materials.outputs[0], "Selection": scaffold},
                   domain="LAYER")
-    drawings = b.node("GeometryNodeRemoveAttribute", {"Geometry": kept.outputs[0], "Name": SCAFFOLD}).outputs[0]
-    joined = b.node("GeometryNodeJoinGeometry")
-    for name in ("Mesh", "Curve", "Point Cloud", "Volume", "Instances"):
-        group.links.new(parts.outputs[name], joined.inputs[0])
-    group.links.new(drawings, joined.inputs[0])
-    has_drawings = b.node("GeometryNodeAttributeDomainSize", {"Geometry": parts.outputs["Grease Pencil"]},
-                          component="GREASEPENCIL").outputs["Layer Count"]
-    reorder = b.node("FunctionNodeBooleanMath", [given.outputs[ORDER_INPUT], b.node(
-        "FunctionNodeCompare", {"A": has_drawings, "B": 0}, data_type="INT", operation="GREATER_THAN").outputs[0]],
-        operation="AND").outputs[0]
-    ordered = b.node("GeometryNodeSwitch", {"Switch": reorder, "False": moved.outputs[0], "True": joined.outputs[0]},
-                     input_type="GEOMETRY").outputs[0]
-
-    # No cage (deleted by hand, or no faces): the geometry passes unchanged.
-    faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.outputs["Geometry"]}, component="MESH")
-    has_cage = b.node("FunctionNodeCompare", {"A": faces.outputs["Face Count"], "B": 0},
-                      data_type="INT", operation="GREATER_THAN").outputs[0]
-    switch = b.node("GeometryNodeSwitch", {"Switch": has_cage, "False": given.outputs[0], "True": ordered},
-                    input_type="GEOMETRY")
-    b.node("NodeGroupOutput", {0: switch.outputs[0]})
+    return b.node("GeometryNodeRemoveAttribute", {"Geometry": kept.outputs[0], "Name": SCAFFOLD}).outputs[0]
