@@ -22,7 +22,6 @@ pytest imports this file and before anything imports ``bpy``. Tests must not
 import ``bpy`` from outside ``tests/addon``.
 """
 
-import importlib.util
 import os
 import shutil
 import sys
@@ -39,17 +38,7 @@ os.environ["BLENDER_USER_RESOURCES"] = USER_RESOURCES
 import bpy  # noqa: E402  (needs the environment above)
 import addon_utils  # noqa: E402  (on sys.path once bpy is loaded)
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-EXTENSION_ID = "shapedeform"
-ADDON_MODULE = f"bl_ext.user_default.{EXTENSION_ID}"
-
-
-def load_build_tool():
-    """Import ``tools/build_extension.py`` (``tools`` is not a package)."""
-    spec = importlib.util.spec_from_file_location("build_extension", os.path.join(ROOT, "tools", "build_extension.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from extension_under_test import ADDON_MODULE, load_build_tool  # noqa: E402
 
 
 def fail_on_error(ex):

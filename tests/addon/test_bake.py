@@ -14,7 +14,7 @@ import pytest
 from mathutils import Vector
 
 import rig_checks as checks
-from conftest import ADDON_MODULE
+from extension_under_test import ADDON_MODULE
 from test_rig_curve import curve_points, evaluated_vertices, text_curve
 from test_rig_grease_pencil import drawing_points
 from test_rig_mesh import grid

@@ -13,7 +13,7 @@ import zipfile
 import bpy
 import addon_utils
 from blender_state import register_cycle
-from conftest import ADDON_MODULE, EXTENSION_ID, ROOT, load_build_tool
+from extension_under_test import ADDON_MODULE, EXTENSION_ID, ROOT, load_build_tool
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 

@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 import pytest
 
-from conftest import ADDON_MODULE
+from extension_under_test import ADDON_MODULE
 
 import renders
 import rig_checks as checks

@@ -5,7 +5,7 @@ import pytest
 
 import solver
 from benchmarks import metrics
-from conftest import glyph_rings
+from sample_shapes import glyph_rings
 
 
 @pytest.fixture(scope="module")

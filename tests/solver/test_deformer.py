@@ -7,7 +7,7 @@ import solver
 from solver.folds import FoldPenalty
 from solver.unknowns import Unknowns
 from solver.triangulate import triangle_cross
-from conftest import disk, figure_rings, glyph_rings, hooves_and_head, region
+from sample_shapes import disk, figure_rings, glyph_rings, hooves_and_head, region
 
 
 def flipped(graph, positions):

@@ -5,7 +5,7 @@ import pytest
 
 import solver
 from solver.energy import mean_value_weights
-from conftest import disk, figure_rings, glyph_rings
+from sample_shapes import disk, figure_rings, glyph_rings
 
 
 def triangle_areas(graph):

@@ -5,7 +5,7 @@ import pytest
 
 import solver
 from benchmarks import random_drags
-from conftest import glyph_rings
+from sample_shapes import glyph_rings
 
 
 def _stretched(prevent_flips, spacing=None, normalise_density=False):

@@ -5,7 +5,7 @@ import pytest
 
 from solver.outline import outline_graph, simplify_rings, spacing_for_count
 
-from conftest import disk
+from sample_shapes import disk
 
 
 def test_spacing_for_count():

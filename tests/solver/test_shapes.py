@@ -5,7 +5,7 @@ import pytest
 
 import solver
 from solver.shapes import shape_geometry, signed_area
-from conftest import disk, glyph_rings
+from sample_shapes import disk, glyph_rings
 
 SQUARE = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], dtype=float)
 HOLE = np.array([[1, 1], [3, 1], [3, 3], [1, 3]], dtype=float)

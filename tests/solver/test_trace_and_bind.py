@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import solver
-from conftest import disk, region
+from sample_shapes import disk, region
 from solver.shapes import signed_area
 
 

@@ -8,7 +8,7 @@ from solver.rigging.handles import (apply_affine, frame_2d, handle_matrix, inver
                                     region_offsets, region_targets, rest_position, select_region)
 from solver.rigging.plane import fit_plane
 
-from conftest import disk
+from sample_shapes import disk
 
 
 @pytest.fixture

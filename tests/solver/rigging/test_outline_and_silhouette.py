@@ -10,7 +10,7 @@ from solver.rigging.outline import boundary_loops, sample_bezier
 from solver.rigging.silhouette import fit_affine, image_cutout, stroke_silhouette
 from solver.shapes import shape_geometry
 
-from conftest import disk
+from sample_shapes import disk
 
 
 def grid_triangles(nx, ny):
