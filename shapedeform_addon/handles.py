@@ -11,9 +11,9 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from ..solver.rigging.handles import (frame_2d, handle_matrix, region_offsets, rest_position,
+from ..solver.rigging.handles import (frame_2d, handle_matrix, place, region_offsets,
                                       select_region)
-from ..solver.rigging.plane import affine_inverse, transform_points
+from ..solver.rigging.plane import affine_inverse
 from . import nodes, rig_format
 from . import rig as rigs
 from .errors import RigError
@@ -72,22 +72,13 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     rig_format.require_local(obj, "add handles")
     rig = rigs.get(obj)
     world = rig_format.rig_space(obj)
-    if np.linalg.matrix_rank(world[:3, :3] @ rig.plane.axes[:2].T) < 2:
-        raise RigError(f"'{obj.name}' is scaled to zero across its shape: a handle cannot be placed on it")
-    location = np.asarray(location, dtype=np.float64)
-    # Blender stores a location as float32, clamping an infinity to float32's largest value.
-    if not np.all(np.abs(location) < np.finfo(np.float32).max):
-        raise RigError("the handle's location is not a finite point")
-    point = rig.plane.to_2d(transform_points(affine_inverse(world), location[None]))[0]
-    if not np.all(np.isfinite(point)):
-        raise RigError("the handle's location is not a finite point")
     graph = rig.graph
-    rest_centre = point if on_rest else rest_position(graph.points, rig.posed, graph.triangles, point[None])[0]
-    if on_rest:
-        # Placed where that rest point is now, so it holds the shape as it is.
-        point = rest_position(rig.posed, graph.points, graph.triangles, point[None])[0]
+    try:
+        point, rest_centre = place(rig.plane, world, location, graph.points, rig.posed, graph.triangles, on_rest)
+    except ValueError as err:
+        raise RigError(f"'{obj.name}': {err}") from None
     if kind != "POSITION":
-        return _add_pin(obj, rig, int(np.argmin(np.linalg.norm(graph.points - rest_centre, axis=1))), kind)
+        return _add_pin(obj, rig, int(select_region(graph.points, rest_centre, 0.0, minimum=1)[0]), kind)
     taken = np.zeros(graph.n, dtype=bool)
     taken[rig.indices] = True
     try:

@@ -14,12 +14,10 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..binding import bind
+from .plane import affine_inverse, transform_points
 
 __all__ = ["frame_2d", "handle_matrix", "apply_affine", "invert_affine", "select_region",
-           "region_offsets", "region_targets", "rest_position", "REGION_FRACTION"]
-
-# Default region radius as a fraction of the shape's size (bounding-box diagonal).
-REGION_FRACTION = 0.04
+           "region_offsets", "region_targets", "rest_position", "place"]
 # Fewest graph points in a region: three points fix a patch's rotation as well as its place.
 MIN_REGION_POINTS = 3
 
@@ -195,3 +193,47 @@ def rest_position(rest_points, posed_points, triangles, query):
     posed = SimpleNamespace(points=np.asarray(posed_points, dtype=np.float64),
                             triangles=np.asarray(triangles, dtype=np.int64), n=len(posed_points))
     return bind(posed, np.asarray(query, dtype=np.float64).reshape(-1, 2)).apply(rest_points)
+
+
+def place(plane, space, location, rest_points, posed_points, triangles, on_rest=False):
+    """Where a handle added at ``location`` goes, in the shape's plane.
+
+    Parameters
+    ----------
+    plane : solver.rigging.plane.Plane
+        The shape's plane, in the rig's space.
+    space : (4, 4) array_like
+        The rig's space in the frame of ``location`` (in Blender, world space).
+    location : (3,) array_like
+    rest_points, posed_points : (n, 2) array_like
+        Graph points at rest and as posed now.
+    triangles : (t, 3) array_like of int
+    on_rest : bool
+        ``location`` is a point of the rest shape (a selected vertex), not of the posed one.
+
+    Returns
+    -------
+    point : (2,) float64 ndarray
+        The handle's place on the posed shape.
+    rest_centre : (2,) float64 ndarray
+        The rest point under it, around which its region is chosen.
+
+    Raises
+    ------
+    ValueError
+        ``space`` flattens the plane (an object scaled to zero across its shape), or
+        ``location`` is not a finite point.
+    """
+    space = np.asarray(space, dtype=np.float64)
+    if np.linalg.matrix_rank(space[:3, :3] @ plane.axes[:2].T) < 2:
+        raise ValueError("scaled to zero across its shape: a handle cannot be placed on it")
+    location = np.asarray(location, dtype=np.float64).reshape(3)
+    # Blender stores a location as float32, clamping an infinity to float32's largest value.
+    if not np.all(np.abs(location) < np.finfo(np.float32).max):
+        raise ValueError("the handle's location is not a finite point")
+    point = plane.to_2d(transform_points(affine_inverse(space), location[None]))[0]
+    if not np.all(np.isfinite(point)):
+        raise ValueError("the handle's location is not a finite point")
+    if on_rest:  # placed where that rest point is now, so it holds the shape as it is
+        return rest_position(posed_points, rest_points, triangles, point[None])[0], point
+    return point, rest_position(rest_points, posed_points, triangles, point[None])[0]

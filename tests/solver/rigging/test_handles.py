@@ -70,3 +70,26 @@ def test_rest_position_inverts_a_pose():
     query = np.array([[3.5, 0.2], [2.0, -0.4]])
     np.testing.assert_allclose(rest_position(graph.points, posed, graph.triangles, query),
                                [[0.25, 0.2], [-0.5, -0.4]], atol=1e-12)
+
+
+def test_place_finds_the_rest_point_under_a_posed_location_and_back():
+    """On a shape moved as a whole, a location on the posed shape is over the rest point it
+    came from, and a rest location (a selected vertex) is placed where that point is now; a
+    space that flattens the plane and a non-finite location are refused by name."""
+    from solver.rigging.handles import place
+
+    rest = disk(1.0, 24)
+    graph = solver.build_graph([rest])
+    posed = graph.points + [0.5, -0.25]
+    plane = fit_plane(np.column_stack([rest, np.zeros(len(rest))]))
+    world = np.eye(4)
+    location = np.array([0.6, -0.2, 0.0])
+    point, centre = place(plane, world, location, graph.points, posed, graph.triangles)
+    np.testing.assert_allclose(plane.to_3d(point[None])[0], location, atol=1e-12)
+    np.testing.assert_allclose(plane.to_3d(centre[None])[0], location - [0.5, -0.25, 0.0], atol=1e-9)
+    point, centre = place(plane, world, location, graph.points, posed, graph.triangles, on_rest=True)
+    np.testing.assert_allclose(plane.to_3d(point[None])[0], location + [0.5, -0.25, 0.0], atol=1e-9)
+    with pytest.raises(ValueError, match="scaled to zero"):
+        place(plane, np.diag([0.0, 1.0, 1.0, 1.0]), location, graph.points, posed, graph.triangles)
+    with pytest.raises(ValueError, match="not a finite point"):
+        place(plane, world, [np.inf, 0.0, 0.0], graph.points, posed, graph.triangles)
