@@ -17,11 +17,9 @@ Each source module offers the same functions:
     Local rest positions of the selected points (for a handle at each).
 """
 
-from dataclasses import dataclass, field
-from typing import Callable
-
-
 from ..errors import RigError, with_article
+from . import curve, grease_pencil, image_plane, mesh
+from .prepared import Prepared
 
 __all__ = ["RigError", "with_article", "type_name", "Prepared", "module_for", "kind_of"]
 
@@ -32,42 +30,14 @@ def type_name(obj):
     return (items[obj.type].name if obj.type in items else obj.type.replace("_", " ")).lower()
 
 
-@dataclass
-class Prepared:
-    """What binding an object needs, computed before anything is changed.
-
-    Attributes
-    ----------
-    plane : solver.rigging.Plane
-    graph : solver.Graph
-    commit : callable(obj)
-        Makes the changes binding needs beyond the rig's own (an image plane's cut-out).
-    advice : str
-        What the user should know about the bound result (empty when nothing).
-    modifier_inputs : dict
-        Values the deformer modifier's inputs start with, by input name, where this object's
-        differ from the node group's defaults (grease pencil: Stroke Order).
-    """
-
-    plane: object
-    graph: object
-    commit: Callable = field(default=lambda obj: None)
-    advice: str = ""
-    modifier_inputs: dict = field(default_factory=dict)
-
-
 def module_for(obj):
     """The source module of an object (bound or not); RigError for kinds we cannot rig."""
-    from . import curve, grease_pencil, image_plane, mesh
-
     kind = obj.shapedeform.kind if obj.shapedeform.is_bound else kind_of(obj)
     return {"MESH": mesh, "IMAGE": image_plane, "CURVE": curve, "GREASEPENCIL": grease_pencil}[kind]
 
 
 def kind_of(obj):
     """What kind of shape an unbound object is: MESH, IMAGE, CURVE or GREASEPENCIL."""
-    from . import image_plane
-
     if obj is None:
         raise RigError("No active object to rig")
     if obj.type == "MESH":

@@ -19,7 +19,8 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.outline import sample_bezier
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
-from . import Prepared, RigError
+from ..errors import RigError
+from .prepared import Prepared
 
 REST_PROPERTY = "sd_rest"
 # Sweep radius around open splines when no spline is closed, as a fraction of the curve's size

@@ -19,7 +19,8 @@ import numpy as np
 from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
-from . import Prepared, RigError
+from ..errors import RigError
+from .prepared import Prepared
 from ..nodes import ORDER_INPUT, RIGGED
 from ..rig_format import LEGACY_GP_FRAMES, LEGACY_GP_LAYERS, RIGGED_KEY
 from .mesh import REST_ATTRIBUTE, read_vectors

@@ -18,7 +18,9 @@ from ...solver.rigging.plane import fit_plane, transform_points
 from ...solver.rigging.silhouette import fit_affine, image_cutout
 from .. import rig_format
 from ..rig_format import CUTOUT_KEY
-from . import Prepared, RigError, mesh as mesh_source
+from ..errors import RigError
+from . import mesh as mesh_source
+from .prepared import Prepared
 
 # Shared with meshes once the cut-out is in place.
 selected = mesh_source.selected

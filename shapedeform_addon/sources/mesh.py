@@ -12,7 +12,8 @@ from ... import solver
 from ...solver.outline import outline_graph
 from ...solver.rigging.outline import boundary_loops, smallest_angles
 from ...solver.rigging.plane import fit_plane
-from . import Prepared, RigError
+from ..errors import RigError
+from .prepared import Prepared
 
 REST_ATTRIBUTE = "sd_rest"
 # The automatic graph mode deforms the mesh itself up to this many vertices; denser meshes are
