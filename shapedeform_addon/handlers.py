@@ -105,7 +105,8 @@ def on_depsgraph_update(scene, depsgraph):
         if not update.is_updated_transform:
             continue
         owner = handles.rig_of(obj)
-        # Pins follow the cage (vertex parents): their moves are the pose's, not the animator's.
+        # Position handles only: pins ride on the cage (vertex parents), so their moves come
+        # from the pose, and posing again for them would never settle.
         if owner is not None and obj.type == "EMPTY" and obj.shapedeform.pin_kind == "POSITION":
             moved[owner.name] = owner
     _pose(list(moved.values()), depsgraph)

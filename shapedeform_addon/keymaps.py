@@ -14,6 +14,15 @@ KEYS = (
 
 _added = []
 
+
+def shortcut(idname):
+    """How the interface writes ``idname``'s key ("Ctrl Shift D"), or "" when it has none."""
+    for _, _, bound, key, modifiers in KEYS:
+        if bound == idname:
+            held = [name.capitalize() for name in ("ctrl", "shift", "alt", "oskey") if modifiers.get(name)]
+            return " ".join(held + [key])
+    return ""
+
 classes = ()
 
 

@@ -96,8 +96,7 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
         else:
             local = sources.module_for(active).selected(active)
             if len(local) == 0:
-                if was_edit:
-                    bpy.ops.object.mode_set(mode="EDIT")
+                bpy.ops.object.mode_set(mode="EDIT")
                 self.report({"ERROR"}, "Select points of the shape, or give a location")
                 return {"CANCELLED"}
             # In the rig owner's space: a duplicate that follows its rig is mapped through the

@@ -3,7 +3,7 @@
 
 import bpy
 
-from . import compat, nodes
+from . import compat, keymaps, nodes
 from .rig_format import active_rig, is_baked, is_follower, modifiers_of
 from .sources import grease_pencil
 
@@ -84,7 +84,7 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
         col = layout.column(align=True)
         col.label(text="Pose and Animate")
         # The drag needs the viewport's own region, so it runs from its key, not a button here.
-        col.label(text="Drag handles: Ctrl Shift D in the viewport", icon="MOUSE_LMB_DRAG")
+        col.label(text=f"Drag handles: {keymaps.shortcut('shapedeform.drag')} in the viewport", icon="MOUSE_LMB_DRAG")
         if is_baked(obj):
             col.label(text="Baked: the keyframes play, the rig waits", icon="KEYFRAME_HLT")
             col.operator("shapedeform.clear_bake", icon="TRASH")

@@ -15,6 +15,12 @@ def test_panel_is_in_its_own_tab(addon):
     assert (panel.bl_space_type, panel.bl_region_type, panel.bl_category) == ("VIEW_3D", "UI", "Shape Deform")
 
 
+def test_the_panel_names_the_drag_key_the_key_map_binds(addon):
+    keymaps = addon.shapedeform_addon.keymaps
+    assert keymaps.shortcut("shapedeform.drag") == "Ctrl Shift D"
+    assert keymaps.shortcut("shapedeform.bind") == ""
+
+
 def test_overlay_draws_the_posed_graph_and_regions(addon):
     overlay = addon.shapedeform_addon.overlay
     obj = grid()
