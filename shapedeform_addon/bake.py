@@ -34,6 +34,7 @@ _LINEAR = 1  # Keyframe.interpolation 'LINEAR' as foreach_set takes it (the enum
 
 
 def key_name(frame):
+    """The name of the shape key a bake writes for ``frame``."""
     return f"{PREFIX}{frame:04d}"
 
 

@@ -82,6 +82,7 @@ class AreaConstraint:
         return abs(self.area(v) - self.rest) <= bound
 
     def area(self, v):
+        """The shape's signed area at free coordinates ``v`` (2 f,), the fixed points held."""
         return 0.5 * float(v @ (self._free_free @ v)) + float(self._linear @ v) + self._constant
 
     def jacobian(self, v):

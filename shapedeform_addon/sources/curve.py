@@ -67,6 +67,7 @@ def _rings_and_strokes(curve, flat):
 
 
 def prepare(obj, settings):
+    """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
     curve = obj.data
     rest = points(curve)
     if len(rest) == 0:
@@ -88,6 +89,7 @@ def prepare(obj, settings):
 
 
 def unbind(obj):
+    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`)."""
     return []
 
 
@@ -111,6 +113,7 @@ def _write(obj, values):
 
 
 def restore_legacy(obj):
+    """Write an older version's saved rest points back (see :mod:`.sources`)."""
     values = obj.data.get(REST_PROPERTY)
     if values is None:
         return [f"the rest shape (property {REST_PROPERTY} is gone; the points stay where they are)"]

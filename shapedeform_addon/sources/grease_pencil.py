@@ -92,6 +92,7 @@ def stroke_order_losses(obj):
 
 
 def prepare(obj, settings):
+    """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
     frames = [(layer, layer.current_frame()) for layer in _chosen_layers(obj, settings)]
     frames = [(layer, frame) for layer, frame in frames if frame is not None and frame.drawing is not None]
     if not frames:
@@ -139,6 +140,7 @@ def prepare(obj, settings):
 
 
 def unbind(obj):
+    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`)."""
     name = obj.shapedeform.get(RIGGED_KEY, RIGGED)  # rigs bound before the key was kept used RIGGED
     attribute = obj.data.attributes.get(name) if name else None
     if attribute is not None:
@@ -147,6 +149,7 @@ def unbind(obj):
 
 
 def restore_legacy(obj):
+    """Write an older version's saved rest points back (see :mod:`.sources`)."""
     # Every drawing's rest is read before any is written, so what is restored does not depend
     # on where in the list a lost drawing is.
     found, lost = [], []

@@ -49,6 +49,7 @@ def is_image_plane(obj):
 
 
 def prepare(obj, settings):
+    """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
     quad = obj.data
     image = _image(obj)
     width, height = image.size
@@ -125,5 +126,6 @@ def _as_bound(obj, cutout, applied):
 
 
 def restore_legacy(obj):
+    """Write an older version's saved rest points back (see :mod:`.sources`)."""
     # An older version's image plane wrote poses into the cut-out, which goes with the quad's return.
     return [] if obj.shapedeform.original_data is not None else mesh_source.restore_legacy(obj)

@@ -32,10 +32,12 @@ def read_vectors(attribute, count):
 
 
 def positions(mesh):
+    """The mesh's vertex positions, (v, 3) float32."""
     return read_vectors(mesh.attributes["position"], len(mesh.vertices))
 
 
 def triangles(mesh):
+    """Its faces as triangles, (t, 3) int64 vertex indices."""
     mesh.calc_loop_triangles()
     flat = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
     mesh.loop_triangles.foreach_get("vertices", flat)
@@ -43,12 +45,14 @@ def triangles(mesh):
 
 
 def edges(mesh):
+    """Its edges, (e, 2) int64 vertex indices."""
     flat = np.empty(len(mesh.edges) * 2, dtype=np.int32)
     mesh.edges.foreach_get("vertices", flat)
     return flat.reshape(-1, 2).astype(np.int64)
 
 
 def prepare(obj, settings):
+    """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
     mesh = obj.data
     if len(mesh.vertices) == 0:
         raise RigError(f"'{obj.name}' has no vertices")
@@ -87,10 +91,12 @@ def prepare(obj, settings):
 
 
 def unbind(obj):
+    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`)."""
     return []
 
 
 def restore_legacy(obj):
+    """Write an older version's saved rest points back (see :mod:`.sources`)."""
     mesh = obj.data
     attribute = mesh.attributes.get(REST_ATTRIBUTE)
     if attribute is None or attribute.domain != "POINT" or attribute.data_type != "FLOAT_VECTOR":

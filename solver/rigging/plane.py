@@ -45,6 +45,7 @@ class Plane:
 
     @property
     def normal(self):
+        """The plane's unit normal, (3,)."""
         return self.axes[2]
 
     def to_2d(self, points):
