@@ -1,11 +1,13 @@
-"""The global area constraint of the paper's section 5, met exactly at every iterate.
+"""The global area constraint of the paper's section 5 (problem (10)), met exactly at every iterate.
 
 The signed area of all boundary loops (islands minus holes) is quadratic in the positions, so
 along any direction the correction that restores it is a root of a quadratic
 (:meth:`AreaConstraint.restore`), and a start far from the rest area (after an extreme drag) is
 first projected onto it (:meth:`AreaConstraint.project`). The optimiser projects each step onto
 the constraint's tangent in the metric of its preconditioner (:func:`tangent`) and measures
-curvature with the Lagrangian's gradient (:func:`multiplier`).
+curvature with the Lagrangian's gradient (:func:`multiplier`): the paper's Lagrange step after
+(13), ``h = -H^-1 (A^T S + J^T lambda)``, with ``H`` whatever matrix the optimiser steps with in
+place of its ``A^T A``, and the constraint's residual ``t`` zero because every iterate is on it.
 """
 
 from __future__ import annotations
@@ -136,8 +138,18 @@ class AreaConstraint:
 
 
 def multiplier(gradient, jacobian, direction):
-    """Least-squares Lagrange multiplier of the area constraint in the metric of H
-    (``direction = H^-1 jacobian``)."""
+    """Least-squares Lagrange multiplier of the area constraint in the metric of H: the paper's
+    ``lambda`` after (13) with ``t = 0``, ``gradient @ H^-1 J / (J @ H^-1 J)``.
+
+    Parameters
+    ----------
+    gradient, jacobian, direction : (2 f,) float ndarray
+        The energy's gradient, the area's (``J``), and ``H^-1 J``.
+
+    Returns
+    -------
+    float
+    """
     along = float(jacobian @ direction)
     if along <= 0.0:
         return 0.0
@@ -145,7 +157,8 @@ def multiplier(gradient, jacobian, direction):
 
 
 def tangent(step, jacobian, direction):
-    """Remove the part of a step that changes the area to first order."""
+    """``step`` (2 f,) less its part along ``direction`` (``H^-1 J``, (2 f,)) that changes the
+    area to first order (``jacobian``, (2 f,)): a step along the constraint's tangent."""
     along = float(jacobian @ direction)
     if along <= 0.0:
         return step

@@ -5,8 +5,9 @@
 a solve starts (:mod:`solver.start`), the preconditioner (:mod:`solver.preconditioner`) and how
 the minimum is found (:mod:`solver.optimizer`), each set by one :class:`~solver.options.Options`.
 
-Handles are hard constraints: their positions are set, not weighted, and their unknowns are
-eliminated, so moving handles only changes right-hand sides.
+Handles are hard constraints in place of equation (6)'s soft term ``||C V - U||^2``: their
+positions are set, not weighted, and their unknowns are eliminated, so moving handles only
+changes right-hand sides.
 """
 
 from __future__ import annotations

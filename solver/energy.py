@@ -402,7 +402,9 @@ def similarity_rows(points, triangles):
     complex ratio ``w = (c - a) / (b - a)``; a pose where every triangle is a rotated, scaled
     copy of its rest self satisfies ``(c - a) - w (b - a) = 0``. The rows are linear, and a
     least-squares pose under handle constraints is smooth and rotates free limbs with what they
-    hang from: a start for the nonlinear solve that depends on the handle targets alone.
+    hang from: a start for the nonlinear solve that depends on the handle targets alone. (Not
+    the paper's: the first, similarity step of Igarashi, Moscovich and Hughes 2005,
+    "As-rigid-as-possible shape manipulation".)
 
     Parameters
     ----------
