@@ -94,10 +94,14 @@ def stroke_order_losses(obj):
 def prepare(obj, settings):
     """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
     frames = [(layer, layer.current_frame()) for layer in _chosen_layers(obj, settings)]
-    frames = [(layer, frame) for layer, frame in frames if frame is not None and frame.drawing is not None]
+    # A layer's keyframe may hold an empty drawing (Add > Grease Pencil > Stroke makes one).
+    frames = [(layer, frame) for layer, frame in frames
+              if frame is not None and frame.drawing is not None and len(frame.drawing.strokes)]
     if not frames:
-        raise RigError(f"'{obj.name}' has no drawing on the current frame")
-    rests, offsets, radii, cyclic, start = [], [np.zeros(1, np.int64)], [], [], 0
+        raise RigError(f"'{obj.name}' has no strokes on the current frame")
+    fills = np.array([slot.material is not None and slot.material.grease_pencil is not None
+                      and slot.material.grease_pencil.show_fill for slot in obj.material_slots] or [False])
+    rests, offsets, radii, filled, start = [], [np.zeros(1, np.int64)], [], [], 0
     for _, frame in frames:
         drawing = frame.drawing
         points = _points(drawing)
@@ -107,7 +111,9 @@ def prepare(obj, settings):
         rests.append(points)
         offsets.append(curve_offsets[1:].astype(np.int64) + start)
         radii.append(_values(drawing, "radius", len(points), np.float32, 0.0))
-        cyclic.append(_values(drawing, "cyclic", max(strokes, 0), bool, False))
+        # Blender fills a stroke drawn with a fill material whether or not it is closed.
+        material = np.clip(_values(drawing, "material_index", strokes, np.int32, 0), 0, len(fills) - 1)
+        filled.append(_values(drawing, "cyclic", strokes, bool, False) | fills[material])
         start += len(points)
     rest = np.concatenate(rests)
     if len(rest) == 0:
@@ -116,7 +122,7 @@ def prepare(obj, settings):
         plane = fit_plane(rest)
         flat = plane.to_2d(rest)
         size = float(np.linalg.norm(np.ptp(flat, axis=0)))
-        rings = stroke_silhouette(flat, np.concatenate(offsets), np.concatenate(radii), np.concatenate(cyclic),
+        rings = stroke_silhouette(flat, np.concatenate(offsets), np.concatenate(radii), np.concatenate(filled),
                                   min_radius=MIN_RADIUS_FRACTION * size)
         graph = outline_graph(rings, settings.density)
     except ValueError as err:

@@ -74,3 +74,37 @@ def test_chosen_layers_only(addon):
     obj.shapedeform.layers = "Nope"
     with pytest.raises(RuntimeError, match="no layer 'Nope'"):
         bpy.ops.shapedeform.bind()
+
+
+def test_strokes_inside_a_fill_move_with_it(addon):
+    """The monkey's skin is drawn with a fill material on strokes that are not closed: Blender
+    fills them, so the shape is the filled face, and its mouth and eyes move with it (only the
+    outlines made the shape: every inner stroke was an island of its own and stayed at rest)."""
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    rest = drawing_points(obj, evaluated=False).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    centre = (rest.min(axis=0) + rest.max(axis=0)) / 2
+    chin = rest[np.argmin(rest[:, 2])]
+    checks.add_handle(obj, checks.world(obj, centre))
+    handle = checks.add_handle(obj, checks.world(obj, chin))
+    handle.location.z -= 0.3
+    bpy.context.view_layer.update()
+    moved = np.linalg.norm(drawing_points(obj) - rest, axis=1)
+    offsets = np.concatenate([[0], np.cumsum([len(layer.current_frame().drawing.strokes)
+                                             for layer in obj.data.layers])])
+    sizes = np.concatenate([[len(s.points) for s in layer.current_frame().drawing.strokes]
+                            for layer in obj.data.layers])
+    stroke_of = np.repeat(np.arange(len(sizes)), sizes)
+    still = [s for s in range(len(sizes)) if moved[stroke_of == s].max() < 1e-4]
+    assert still == []
+
+
+def test_a_drawing_with_an_empty_layer_binds(addon):
+    """Add > Grease Pencil > Stroke keys an empty drawing on its fill layer: Bind rigs the
+    strokes there are (it raised numpy's length mismatch from the empty drawing)."""
+    bpy.ops.object.grease_pencil_add(type="STROKE")
+    obj = bpy.context.active_object
+    assert any(len(layer.current_frame().drawing.strokes) == 0 for layer in obj.data.layers)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert obj.shapedeform.is_bound
