@@ -32,6 +32,14 @@ def bind(obj):
         raise RigError(f"'{obj.name}' is part of the rig of '{settings.rig.name}'")
     kind = sources.kind_of(obj)
     prepared = sources.module_for(obj).prepare(obj, settings)
+    # A deformer modifier copied from another rig (Copy Modifiers) would keep posing the object
+    # with that rig's cage before this one's.
+    copied = rig_format.modifiers_of(obj)
+    for modifier in copied:
+        obj.modifiers.remove(modifier)
+    if copied:
+        prepared.advice = " ".join(filter(None, [prepared.advice, "removed the Shape Deform modifier copied "
+                                                 "from another rig."]))
     prepared.commit(obj)
     rig_format.store_graph(settings, prepared.plane, prepared.graph)
     settings.cage = rig_format.make_cage(obj, prepared.plane, prepared.graph, handles.collection(obj))

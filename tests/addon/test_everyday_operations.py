@@ -1114,3 +1114,26 @@ def test_a_linked_character_instanced_in_a_shot_is_left_as_the_library_has_it(ad
     assert obj.shapedeform.cage.data.library is not None
     assert set(bpy.data.meshes) == meshes
     np.testing.assert_allclose(instanced_points(obj), posed, atol=1e-5)
+
+
+def test_binding_an_object_given_another_rigs_modifier_gives_it_its_own(addon, tmp_path, quiet):
+    """Copy Modifiers from a rigged object to another, then Bind that one: it has one Shape
+    Deform modifier, its own, and rests until its own handles move (the copied modifier stayed
+    first in the stack and posed it with the other rig's cage, 0.6 from rest)."""
+    first = make_mesh(tmp_path)
+    rig = Rigged(first)
+    rig.move(0.6)
+    second = make_mesh(tmp_path)
+    second.location.x += 5.0
+    rest = evaluated(second).copy()
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj in (first, second))
+    bpy.context.view_layer.objects.active = first
+    bpy.ops.object.make_links_data(type="MODIFIERS")
+    bpy.context.view_layer.update()
+    assert np.abs(evaluated(second) - rest).max() > 0.3  # it shows the other rig's pose
+    bpy.context.view_layer.objects.active = second
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert len(addon.shapedeform_addon.rig_format.modifiers_of(second)) == 1
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(evaluated(second), rest, atol=1e-5)
