@@ -23,14 +23,11 @@ FOLLOW = "Shape Deform"  # the constraint by which a handle follows a curve with
 
 
 def parent_space(handle):
-    """World matrix (4, 4) of the space a handle's own transform lives in: its parent's, or
-    the object its Child Of constraint follows (a curve with path animation), else the world."""
-    if handle.parent is not None:
-        return np.array(handle.parent.matrix_world, dtype=np.float64) @ np.array(handle.matrix_parent_inverse)
-    follow = handle.constraints.get(FOLLOW)
-    if follow is not None and follow.type == "CHILD_OF" and follow.target is not None:
-        return np.array(follow.target.matrix_world, dtype=np.float64) @ np.array(follow.inverse_matrix)
-    return np.eye(4)
+    """World matrix (4, 4) of the space a handle's own transform lives in: whatever its parent
+    (object or bone) and constraints (Child Of, the curve follower's among them) make of it,
+    read off as ``matrix_world @ matrix_basis^-1``."""
+    return np.array(handle.matrix_world, dtype=np.float64) @ affine_inverse(np.array(handle.matrix_basis,
+                                                                                   dtype=np.float64))
 
 
 def collection(obj):

@@ -176,3 +176,23 @@ def test_undo_after_a_drag_gives_back_the_pose_and_the_rig_keeps_working(addon):
     bpy.context.view_layer.update()
     np.testing.assert_allclose(checks.evaluated_mesh_points(obj), before, atol=1e-4)
     assert obj.shapedeform.status == ""
+
+
+def test_a_handle_under_a_turned_child_of_moves_with_the_mouse(addon):
+    """A handle the animator constrained (Child Of a controller, then turned a quarter turn)
+    moves where the mouse moves (its location was read in its rig's space alone: it moved the
+    mouse's offset turned 90 degrees)."""
+    obj, left, right = rig_with_two_handles()
+    controller = bpy.data.objects.new("Controller", None)
+    bpy.context.scene.collection.objects.link(controller)
+    follow = right.constraints.new("CHILD_OF")
+    follow.target = controller
+    follow.inverse_matrix = controller.matrix_world.inverted()
+    controller.rotation_euler.z = np.pi / 2
+    bpy.context.view_layer.update()
+    modal, op, _ = operator_stand_in(addon, obj)
+    start = np.array(right.matrix_world.translation)
+    assert modal(op, bpy.context, event("LEFTMOUSE", "PRESS", start)) == {"RUNNING_MODAL"}
+    assert op.session.state.handle == right
+    modal(op, bpy.context, event("MOUSEMOVE", "NOTHING", start + np.array([0.3, 0.2, 0.0])))
+    np.testing.assert_allclose(np.array(right.matrix_world.translation) - start, [0.3, 0.2, 0.0], atol=1e-5)
