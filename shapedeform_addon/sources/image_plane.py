@@ -99,6 +99,8 @@ def unbind(obj):
     cutout = obj.data
     lost = [] if _as_bound(obj, cutout, applied) else \
         ["the Edit Mode edits of its cut-out (the picture's quad is back; Undo brings them back)"]
+    if cutout.shape_keys is not None:
+        lost.append("the shape keys of its cut-out (the picture's quad has none; Undo brings them back)")
     obj.shapedeform.pop(CUTOUT_KEY, None)
     obj.data = original
     obj.shapedeform.original_data = None

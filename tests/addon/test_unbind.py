@@ -296,3 +296,19 @@ def test_a_duplicate_whose_rig_was_unbound_unbinds_without_a_false_warning(addon
     assert "could not give back" not in out.out + out.err
     assert not copy.shapedeform.is_bound and not copy.modifiers
     assert checks.mesh_points(copy).tobytes() == rest.tobytes()
+
+
+def test_unbinding_an_image_plane_says_its_cut_outs_shape_keys_go(addon, tmp_path, capfd):
+    """Shape keys added to a bound image plane live on its cut-out, which Unbind replaces with
+    the picture's quad: the warning names them (they went without a word)."""
+    from test_rig_image_plane import import_picture
+
+    obj, _ = import_picture(tmp_path)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    obj.shape_key_add(name="Basis")
+    obj.shape_key_add(name="Squash").value = 0.5
+    capfd.readouterr()
+    unbind(obj)
+    out = capfd.readouterr()
+    assert "shape keys of its cut-out" in out.out + out.err
