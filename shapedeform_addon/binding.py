@@ -12,6 +12,10 @@ from . import bake, handles, rig, rig_format, sources
 from .errors import RigError
 
 
+# Modifiers that add geometry away from the object's own (a mirrored half, array copies).
+GENERATING = {"MIRROR", "ARRAY", "SCREW", "BOOLEAN"}
+
+
 def bind(obj):
     """Rig ``obj``; returns its :class:`rig.Rig` and advice for the user ("" when none).
 
@@ -37,9 +41,16 @@ def bind(obj):
     copied = rig_format.modifiers_of(obj)
     for modifier in copied:
         obj.modifiers.remove(modifier)
+    notes = [prepared.advice] if prepared.advice else []
     if copied:
-        prepared.advice = " ".join(filter(None, [prepared.advice, "removed the Shape Deform modifier copied "
-                                                 "from another rig."]))
+        notes.append("removed the Shape Deform modifier copied from another rig")
+    adding = [m.name for m in obj.modifiers if m.type in GENERATING and m.show_viewport]
+    if adding:
+        # The rig is built from the object's own data; the rig's modifier comes after these.
+        notes.append(f"the rig was built without what {', '.join(map(repr, adding))} add"
+                     f"{'s' if len(adding) == 1 else ''}: their copies follow the nearest bound part; "
+                     "apply them before binding to rig the whole shape")
+    prepared.advice = "; ".join(notes)
     prepared.commit(obj)
     rig_format.store_graph(settings, prepared.plane, prepared.graph)
     settings.cage = rig_format.make_cage(obj, prepared.plane, prepared.graph, handles.collection(obj))

@@ -1137,3 +1137,16 @@ def test_binding_an_object_given_another_rigs_modifier_gives_it_its_own(addon, t
     assert len(addon.shapedeform_addon.rig_format.modifiers_of(second)) == 1
     bpy.context.view_layer.update()
     np.testing.assert_allclose(evaluated(second), rest, atol=1e-5)
+
+
+def test_binding_over_a_mirror_says_the_mirrored_half_is_not_rigged(addon, tmp_path, capfd):
+    """Half a character modelled with a Mirror modifier: the rig is built from the object's own
+    half, and Bind says so and what to do (it bound silently, and a handle on the mirrored half
+    levered the seam)."""
+    obj = make_mesh(tmp_path)
+    obj.modifiers.new("Mirror", "MIRROR")
+    bpy.context.view_layer.objects.active = obj
+    capfd.readouterr()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    out = capfd.readouterr()
+    assert "'Mirror' adds" in out.out + out.err and "apply them before binding" in out.out + out.err
