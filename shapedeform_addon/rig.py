@@ -4,9 +4,16 @@
 :class:`Rig` holds the solver objects of one owner, rebuilt lazily from what the .blend keeps
 (:mod:`.rig_format`). Its owner is this module's ``_cache``, keyed by ``Object.session_uid``; an
 entry is stale when the owner's handles or settings change (:func:`signature`, or
-:func:`invalidate`: rebuilt keeping its coarse copies) and is dropped by :func:`forget` (after
+:func:`invalidate`) and is dropped by :func:`forget` (after
 load, undo or redo). Posing writes only the cage, a
 few hundred points; the object's Shape Deform modifier maps its own points through it.
+
+Coarse copies of graphs (:class:`solver.CoarseCopies`) are kept in ``_coarse_copies`` for every
+rig: they are keyed by the graph's points and outline, so they stay valid across undo and
+reloading, and a rebuilt rig skips making them again (most of a rebuild's time).
+
+A rig remembers its last solve: a frame whose handles give the same targets (a rig nobody
+animated, during playback) reuses it, since a pose depends on its targets alone.
 """
 
 import bpy
@@ -20,17 +27,13 @@ from . import rig_format
 from .errors import RigError
 
 _cache = {}
+_coarse_copies = solver.CoarseCopies(kept=32)
 
 
 class Rig:
-    """Solver objects of one rig owner, rebuilt from its stored data.
+    """Solver objects of one rig owner, rebuilt from its stored data."""
 
-    ``previous``, the rig this one replaces (handles or settings changed), hands on its coarse
-    copies of the graph (:class:`solver.CoarseCopies`, keyed by the graph's points, so a copy
-    is only reused for the same shape): rebuilding after a handle edit then skips building them.
-    """
-
-    def __init__(self, obj, previous=None):
+    def __init__(self, obj):
         if rig_format.is_legacy(obj):
             raise RigError(f"'{obj.name}' was bound by an older version of Shape Deform; "
                            "unbind it (its rest shape comes back) and bind it again")
@@ -38,7 +41,8 @@ class Rig:
         if settings.cage is None or not len(settings.cage.data.vertices):
             raise RigError(f"'{obj.name}' lost its cage; unbind it and bind it again")
         rig_format.follow_library_cage(settings.cage)
-        self.coarse_copies = previous.coarse_copies if previous is not None else solver.CoarseCopies()
+        self.coarse_copies = _coarse_copies
+        self._last_solve = None  # (iterations, targets' bytes, positions, converged)
         self.plane, self.graph = rig_format.read_graph(obj)
         if len(settings.cage.data.vertices) != self.graph.n:
             raise RigError(f"'{obj.name}': its cage '{settings.cage.name}' was edited; unbind it and bind it again")
@@ -87,8 +91,13 @@ class Rig:
             self.settled = True
             return self.graph.points.copy()
         targets = region_targets(frames, self.offsets, self.owners)
+        key = (iterations, targets.tobytes())
+        if self._last_solve is not None and self._last_solve[:2] == key:
+            positions, self.settled = self._last_solve[2:]
+            return positions.copy()
         solution = self.deformer.solve(targets, max_iterations=iterations)
         self.settled = solution.converged
+        self._last_solve = key + (solution.positions.copy(), solution.converged)
         return solution.positions
 
     def _stiffness(self, obj):
@@ -129,7 +138,7 @@ def get(obj):
         raise RigError(f"'{obj.name}' is not bound")
     rig = _cache.get(owner.session_uid)
     if rig is None or rig.signature != signature(owner):
-        rig = Rig(owner, previous=rig)
+        rig = Rig(owner)
         _cache[owner.session_uid] = rig
     return rig
 

@@ -1150,3 +1150,47 @@ def test_binding_over_a_mirror_says_the_mirrored_half_is_not_rigged(addon, tmp_p
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     out = capfd.readouterr()
     assert "'Mirror' adds" in out.out + out.err and "apply them before binding" in out.out + out.err
+
+
+def test_playback_solves_a_rig_whose_handles_stay_put_once(addon, tmp_path):
+    """A rig nobody animated gives the same targets on every frame: its solve is reused (a pose
+    depends on its targets alone), while an animated rig beside it solves every frame. Each
+    static rig cost a solve and a re-evaluation per frame."""
+    rig = addon.shapedeform_addon.rig
+    still = make_mesh(tmp_path)
+    Rigged(still).move(0.3)
+    animated = make_mesh(tmp_path)
+    animated.location.x += 5.0
+    handle = Rigged(animated).second
+    handle.keyframe_insert("location", frame=1)
+    handle.location.y += 0.5
+    handle.keyframe_insert("location", frame=10)
+    scene = bpy.context.scene
+    scene.frame_set(1)
+    counts = {}
+    for obj in (still, animated):
+        deformer = rig.get(obj).deformer
+        counts[obj.name] = 0
+
+        def counted(*args, _solve=deformer.solve, _name=obj.name, **kwargs):
+            counts[_name] += 1
+            return _solve(*args, **kwargs)
+        deformer.solve = counted
+    posed = evaluated(still).copy()
+    for frame in range(2, 11):
+        scene.frame_set(frame)
+    assert counts == {still.name: 0, animated.name: 9}
+    np.testing.assert_array_equal(evaluated(still), posed)
+
+
+def test_a_rig_rebuilt_after_undo_keeps_its_coarse_copy(addon, tmp_path):
+    """Undo, redo and reopening drop the rigs, not the coarse copies of their graphs (keyed by
+    the graph itself): rebuilding skipped remaking the copy, most of a rebuild's time."""
+    rig = addon.shapedeform_addon.rig
+    bpy.ops.object.grease_pencil_add(type="MONKEY")  # a graph large enough to have a coarse copy
+    obj = bpy.context.active_object
+    Rigged(obj)
+    copies = [start.copy for start in rig.get(obj).deformer._starts if hasattr(start, "copy")]
+    rig.forget()  # what the undo and load handlers do
+    again = [start.copy for start in rig.get(obj).deformer._starts if hasattr(start, "copy")]
+    assert copies and all(a is b for a, b in zip(copies, again))

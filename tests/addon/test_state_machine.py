@@ -251,7 +251,6 @@ class Machine:
         self.position = -1
         self.poses = collections.OrderedDict()  # (version, frame) -> {object name: points}
         self.expect_rest = {}  # data keys the current step edits: key -> predicted points
-        self.coarse = {}  # owner name -> the last rig the fresh-solve check built (see there)
         self.solved = collections.OrderedDict()  # fingerprint -> cage points (or why it failed)
 
     # -- bookkeeping ----------------------------------------------------------------------------
@@ -757,13 +756,12 @@ class Machine:
         rig.forget()
         try:
             for owner in owners:
-                previous = kept.get(owner.session_uid) or self.coarse.get(owner.name)
                 try:
-                    fresh = rig.Rig(owner, previous=previous)
+                    fresh = rig.Rig(owner)  # the coarse copies are shared: only the solve is fresh
                 except self.addon.errors.RigError:
                     fresh = None  # posing says why, in the status
                 if fresh is not None:
-                    rig._cache[owner.session_uid] = self.coarse[owner.name] = fresh
+                    rig._cache[owner.session_uid] = fresh
                 if rig_format.is_baked(owner):
                     self.checked["fresh bake played"] += 1
                     live = rig.pose(owner, depsgraph)  # solved, not written: the bake plays
