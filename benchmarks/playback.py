@@ -1,0 +1,114 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Playback: time per frame change with many rigs in a scene, few of them animated.
+
+Each checkout (this one, and ``--compare-with DIR``) is built and installed like a user in a
+Python process of its own (see ``addon_speed.py``). The scene holds ``--rigs`` copies of
+Blender's grease-pencil monkey, each bound with two handles; the first ``--animated`` have a
+handle keyed across the face over frames 1-100. Every frame change is timed
+(``scene.frame_set``: the add-on's frame handler poses the rigs, then Blender evaluates what
+was written); the table gives the median, 90th percentile and worst over ``--rounds``
+alternating runs of 100 frames each::
+
+    .venv/bin/python benchmarks/playback.py [--rigs 20] [--animated 1] [--rounds 2]
+        [--compare-with /tmp/before]
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from addon_speed import _install, _monkey
+
+FRAMES = range(1, 101)
+
+
+def _scene(rigs, animated):
+    """Bind ``rigs`` monkeys side by side, two handles each; key the first ``animated``."""
+    import bpy
+
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    scene = bpy.context.scene
+    for k in range(rigs):
+        obj = _monkey()
+        obj.location.x = 3.5 * k
+        bpy.context.view_layer.update()
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+        obj.shapedeform.render_iterations = obj.shapedeform.iterations  # as while working
+        for z in (-0.6, 0.6):
+            assert bpy.ops.shapedeform.add_handle(location=(3.5 * k, 0.0, z)) == {"FINISHED"}
+            bpy.context.view_layer.objects.active = obj
+        if k < animated:
+            handle = obj.shapedeform.handles[1].object
+            handle.keyframe_insert("location", frame=1)
+            handle.location.x += 0.5
+            handle.keyframe_insert("location", frame=50)
+            handle.location.x -= 0.5
+            handle.keyframe_insert("location", frame=100)
+    scene.frame_set(1)
+    return scene
+
+
+def worker(root, rigs, animated, out):
+    import bpy  # noqa: F401  (loads Blender, which puts addon_utils on the path)
+
+    _install(root)
+    scene = _scene(rigs, animated)
+    times = []
+    for frame in FRAMES:
+        start = time.perf_counter()
+        scene.frame_set(frame)
+        times.append(time.perf_counter() - start)
+    with open(out, "w", encoding="utf-8") as fh:
+        json.dump(times, fh)
+
+
+def _run(root, args):
+    with tempfile.TemporaryDirectory(prefix="shapedeform-playback-") as tmp:
+        out = os.path.join(tmp, "times.json")
+        env = dict(os.environ, BLENDER_USER_RESOURCES=os.path.join(tmp, "user"))
+        proc = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", root, "--json", out,
+                               "--rigs", str(args.rigs), "--animated", str(args.animated)],
+                              env=env, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise SystemExit(f"playback of {root} failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}")
+        with open(out, encoding="utf-8") as fh:
+            return json.load(fh)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rigs", type=int, default=20)
+    parser.add_argument("--animated", type=int, default=1)
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--compare-with", metavar="DIR")
+    parser.add_argument("--worker", metavar="ROOT", help=argparse.SUPPRESS)
+    parser.add_argument("--json", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.worker:
+        worker(args.worker, args.rigs, args.animated, args.json)
+        return 0
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    designs = {"this checkout": here}
+    if args.compare_with:
+        designs["--compare-with"] = os.path.abspath(args.compare_with)
+    times = {name: [] for name in designs}
+    for _ in range(args.rounds):
+        for name, root in designs.items():
+            times[name] += _run(root, args)
+    print(f"{args.rigs} monkeys, {args.animated} animated, {len(FRAMES)} frames x {args.rounds} rounds")
+    print("| checkout | ms per frame: median | 90th percentile | worst |")
+    print("|---|---:|---:|---:|")
+    for name, values in times.items():
+        ms = 1000.0 * np.array(values)
+        print(f"| {name} ({designs[name]}) | {np.median(ms):.1f} | {np.percentile(ms, 90):.1f} | {ms.max():.1f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
