@@ -22,12 +22,26 @@ from .errors import RigError
 FOLLOW = "Shape Deform"  # the constraint by which a handle follows a curve with path animation
 
 
+# Constraints that set the space a transform lives in, as a parent does (Blender's transform
+# reads such a space off the evaluated matrices too).
+PARENTING_CONSTRAINTS = {"CHILD_OF", "FOLLOW_PATH", "CLAMP_TO", "OBJECT_SOLVER", "FOLLOW_TRACK"}
+
+
 def parent_space(handle):
-    """World matrix (4, 4) of the space a handle's own transform lives in: whatever its parent
-    (object or bone) and constraints (Child Of, the curve follower's among them) make of it,
-    read off as ``matrix_world @ matrix_basis^-1``."""
-    return np.array(handle.matrix_world, dtype=np.float64) @ affine_inverse(np.array(handle.matrix_basis,
-                                                                                   dtype=np.float64))
+    """World matrix (4, 4) of the space a handle's own transform lives in.
+
+    Its parent object's (times the parent inverse), or the world's; under a bone or vertex
+    parent or a parenting constraint (Child Of, the curve follower's among them), read off the
+    evaluated matrices as ``matrix_world @ matrix_basis^-1`` where the handle's own transform
+    can be inverted (constraints that only turn or limit it leave the parent's space as it is)."""
+    basis = np.array(handle.matrix_basis, dtype=np.float64)
+    parenting = handle.parent is not None and handle.parent_type != "OBJECT"
+    parenting |= any(c.enabled and c.type in PARENTING_CONSTRAINTS for c in handle.constraints)
+    if parenting and np.linalg.matrix_rank(basis[:3, :3]) == 3:
+        return np.array(handle.matrix_world, dtype=np.float64) @ affine_inverse(basis)
+    if handle.parent is not None:
+        return np.array(handle.parent.matrix_world, dtype=np.float64) @ np.array(handle.matrix_parent_inverse)
+    return np.eye(4)
 
 
 def collection(obj):

@@ -40,7 +40,6 @@ class Rig:
         settings = obj.shapedeform
         if settings.cage is None or not len(settings.cage.data.vertices):
             raise RigError(f"'{obj.name}' lost its cage; unbind it and bind it again")
-        rig_format.follow_library_cage(settings.cage)
         self.coarse_copies = _coarse_copies
         self._last_solve = None  # (iterations, targets' bytes, positions, converged)
         self.plane, self.graph = rig_format.read_graph(obj)
@@ -91,13 +90,16 @@ class Rig:
             self.settled = True
             return self.graph.points.copy()
         targets = region_targets(frames, self.offsets, self.owners)
-        key = (iterations, targets.tobytes())
-        if self._last_solve is not None and self._last_solve[:2] == key:
-            positions, self.settled = self._last_solve[2:]
-            return positions.copy()
+        # The deformer and its tolerance are fixed for the rig's life: the targets and the budget
+        # decide the solve. One that converged, or had at least this budget, serves again (a
+        # Render-budget refine is not undone by the next Viewport-budget update).
+        last = self._last_solve
+        if last is not None and last[1] == targets.tobytes() and (last[3] or last[0] >= iterations):
+            self.settled = last[3]
+            return last[2].copy()
         solution = self.deformer.solve(targets, max_iterations=iterations)
         self.settled = solution.converged
-        self._last_solve = key + (solution.positions.copy(), solution.converged)
+        self._last_solve = (iterations, targets.tobytes(), solution.positions.copy(), solution.converged)
         return solution.positions
 
     def _stiffness(self, obj):
@@ -209,6 +211,9 @@ def pose(obj, depsgraph=None, final=None):
     RigError
         The rig cannot be built or the solve failed; nothing was written.
     """
+    owner = rig_format.owner_of(obj.original)
+    if owner is not None and owner.shapedeform.cage is not None:
+        rig_format.follow_library_cage(owner.shapedeform.cage)  # here, never while drawing
     rig = get(obj)
     owner = rig_format.owner_of(obj.original)
     frames = rig.frames(owner, depsgraph)

@@ -99,8 +99,11 @@ def prepare(obj, settings):
               if frame is not None and frame.drawing is not None and len(frame.drawing.strokes)]
     if not frames:
         raise RigError(f"'{obj.name}' has no strokes on the current frame")
+    # A holdout fill cuts a hole; a stroke past the last slot is drawn unfilled: the extra
+    # False at the end stands for it.
     fills = np.array([slot.material is not None and slot.material.grease_pencil is not None
-                      and slot.material.grease_pencil.show_fill for slot in obj.material_slots] or [False])
+                      and slot.material.grease_pencil.show_fill and not slot.material.grease_pencil.use_fill_holdout
+                      for slot in obj.material_slots] + [False])
     rests, offsets, radii, filled, start = [], [np.zeros(1, np.int64)], [], [], 0
     for _, frame in frames:
         drawing = frame.drawing
@@ -128,7 +131,8 @@ def prepare(obj, settings):
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
 
-    chosen = {layer.name for layer, _ in frames} if settings.layers.strip() else None
+    # Every layer named, also one with nothing drawn yet on this frame.
+    chosen = {layer.name for layer in _chosen_layers(obj, settings)} if settings.layers.strip() else None
 
     def commit(o):
         name = ""
