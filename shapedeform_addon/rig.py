@@ -91,10 +91,9 @@ class Rig:
             return self.graph.points.copy()
         targets = region_targets(frames, self.offsets, self.owners)
         # The deformer and its tolerance are fixed for the rig's life: the targets and the budget
-        # decide the solve. One that converged, or had at least this budget, serves again (a
-        # Render-budget refine is not undone by the next Viewport-budget update).
+        # decide the solve, so the same pair gives the same pose.
         last = self._last_solve
-        if last is not None and last[1] == targets.tobytes() and (last[3] or last[0] >= iterations):
+        if last is not None and last[:2] == (iterations, targets.tobytes()):
             self.settled = last[3]
             return last[2].copy()
         solution = self.deformer.solve(targets, max_iterations=iterations)

@@ -28,7 +28,6 @@ def test_viewport_and_render_iterations(addon):
     bpy.context.view_layer.update()
     assert rig.final_quality()
     default = rig.pose(obj).posed.copy()
-    rig.forget(obj)  # a fuller solve of the same targets would serve the Viewport budget too
     viewport = rig.pose(obj, final=False).posed.copy()
     render = rig.pose(obj, final=True).posed.copy()
     deformer = rig.get(obj).deformer
@@ -51,7 +50,7 @@ def test_a_new_iteration_budget_poses_again_without_rebuilding(addon):
     before = rig.pose(obj).posed.copy()
     obj.shapedeform.render_iterations = 1
     assert rig.get(obj).deformer is deformer
-    np.testing.assert_array_equal(rig.get(obj).posed, before)  # the fuller solve of these targets serves
+    assert np.abs(rig.get(obj).posed - before).max() > 1e-6  # posed again, one iteration short
 
 
 def test_a_driven_setting_reposes_when_its_driver_changes(addon, quiet):
