@@ -13,7 +13,7 @@ from .errors import RigError
 
 
 # Modifiers that add geometry away from the object's own (a mirrored half, array copies).
-GENERATING = {"MIRROR", "ARRAY", "SCREW", "BOOLEAN"}
+GENERATING = {"MIRROR", "ARRAY", "SCREW", "BOOLEAN", "GREASE_PENCIL_MIRROR", "GREASE_PENCIL_ARRAY"}
 
 
 def bind(obj):
@@ -36,15 +36,11 @@ def bind(obj):
         raise RigError(f"'{obj.name}' is part of the rig of '{settings.rig.name}'")
     kind = sources.kind_of(obj)
     prepared = sources.module_for(obj).prepare(obj, settings)
-    # A deformer modifier copied from another rig (Copy Modifiers) would keep posing the object
-    # with that rig's cage before this one's.
     copied = rig_format.modifiers_of(obj)
-    for modifier in copied:
-        obj.modifiers.remove(modifier)
     notes = [prepared.advice] if prepared.advice else []
     if copied:
         notes.append("removed the Shape Deform modifier copied from another rig")
-    adding = [m.name for m in obj.modifiers if m.type in GENERATING and m.show_viewport]
+    adding = [m.name for m in obj.modifiers if m.type in GENERATING and (m.show_viewport or m.show_render)]
     if adding:
         # The rig is built from the object's own data; the rig's modifier comes after these.
         notes.append(f"the rig was built without what {', '.join(map(repr, adding))} add"
@@ -54,6 +50,10 @@ def bind(obj):
     prepared.commit(obj)
     rig_format.store_graph(settings, prepared.plane, prepared.graph)
     settings.cage = rig_format.make_cage(obj, prepared.plane, prepared.graph, handles.collection(obj))
+    # A deformer modifier copied from another rig (Copy Modifiers) would keep posing the object
+    # with that rig's cage before this one's.
+    for modifier in copied:
+        obj.modifiers.remove(modifier)
     rig_format.add_modifier(obj, settings.cage, obj, prepared.modifier_inputs)
     settings.kind = kind
     settings.is_bound = True

@@ -113,7 +113,7 @@ def _bake(args):
             raise _UsageError(f"--output: the folder {folder} does not exist")
     if args.objects:
         # The scene's objects and the rigs it shows through collection instances; a handle or
-        # cage stands for its rig, as in the Bake operator.
+        # cage of the scene's stands for its rig, as in the Bake operator.
         shown = {o.name: o for o in rig_format.owners(scene)} | {o.name: o for o in scene.objects}
         missing = [name for name in args.objects if name not in shown]
         if missing:

@@ -195,28 +195,23 @@ def _points(mesh, data, name="vector"):
     return flat.reshape(-1, 3)
 
 
-def _cage_points(cage, data, name="vector"):
-    """Points (n, 3) float32 of ``cage`` from ``data`` (an attribute's or a shape key's)."""
-    return _points(cage.data, data, name)
-
-
 def shown_pose(cage):
     """The pose the cage shows, (n, 3) float64 in rig space: its positions, or where a bake
     holds it the mix of its shape keys at their current values."""
     key = cage.data.shape_keys
     if key is None:
-        return _cage_points(cage, cage.data.attributes["position"].data).astype(np.float64)
-    mix = _cage_points(cage, key.reference_key.data, "co").astype(np.float64)
+        return _points(cage.data, cage.data.attributes["position"].data).astype(np.float64)
+    mix = _points(cage.data, key.reference_key.data, "co").astype(np.float64)
     for block in key.key_blocks:
         if block != key.reference_key and block.value and not block.mute:
-            mix += block.value * (_cage_points(cage, block.data, "co").astype(np.float64)
-                                  - _cage_points(cage, block.relative_key.data, "co"))
+            mix += block.value * (_points(cage.data, block.data, "co").astype(np.float64)
+                                  - _points(cage.data, block.relative_key.data, "co"))
     return mix
 
 
 def rest_of(cage):
     """The cage's rest points (n, 3) float32, as stored at bind time."""
-    return _cage_points(cage, cage.data.attributes[nodes.REST].data)
+    return _points(cage.data, cage.data.attributes[nodes.REST].data)
 
 
 def add_modifier(obj, cage, owner, inputs=None):

@@ -80,7 +80,7 @@ class CoarseCopies:
     """Coarse copies of shapes, kept for reuse between deformers of the same graph.
 
     Keyed by the graph's points and loops, so a copy is never used for another shape; the
-    ``kept`` most recent are kept.
+    ``kept`` most recently used are kept.
     """
 
     def __init__(self, kept=8):
@@ -108,7 +108,9 @@ class CoarseCopies:
         digest.update(np.array([len(loop) for loop in loops], dtype=np.int64).tobytes())
         digest.update(np.concatenate(loops).astype(np.int64).tobytes())
         key = (digest.digest(), interior, detail)
-        if key not in self._copies:
+        if key in self._copies:
+            self._copies[key] = self._copies.pop(key)  # the most recently used goes last
+        else:
             rings = [graph.points[loop] for loop in loops]
             if interior is None:
                 coarse = build_graph(rings)

@@ -17,7 +17,7 @@ run_one() {
     for arg in "${@:2}"; do
       if [[ $arg != -* && -e ${arg%%::*} ]]; then paths=(); fi
     done
-    "$PYTHON" -m pytest "${paths[@]}" "${@:2}"
+    "$PYTHON" -m pytest ${paths[@]+"${paths[@]}"} "${@:2}"
   )
 }
 

@@ -670,3 +670,14 @@ def test_the_fold_penalty_holds_each_triangle_as_firmly_at_any_density():
         energy, _ = deformer._folds.evaluate(squashed[deformer.free].T.ravel())
         per_triangle.append(energy / len(graph.triangles))
     assert per_triangle[1] == pytest.approx(per_triangle[0], rel=0.3)
+
+
+def test_coarse_copies_keep_the_most_recently_used():
+    """A copy asked for again stays when newer ones arrive; the least recently used goes."""
+    copies = solver.CoarseCopies(kept=2)
+    a, b, c = (solver.build_graph([disk(r, 48)]) for r in (1.0, 1.5, 2.0))
+    first = copies.get(a)
+    copies.get(b)
+    assert copies.get(a) is first
+    copies.get(c)  # evicts b, not a
+    assert copies.get(a) is first
