@@ -12,6 +12,7 @@ the rest of the add-on calls one name on every Blender. Nothing here is register
   ID properties).
 """
 
+import bpy
 from bpy_extras import anim_utils
 
 
@@ -67,3 +68,16 @@ def set_modifier_input(modifier, identifier, value):
         getattr(interface.inputs, identifier).value = value
     else:
         modifier[identifier] = value
+
+
+def fills_strokes(material):
+    """Whether a grease-pencil ``material`` fills every stroke drawn with it, closed or not.
+
+    Up to Blender 5.1 the material's Fill switch decides. 5.2 deprecates that switch (it reads
+    False on materials that fill) and decides fills per stroke, in a way not yet read here: there
+    only closed strokes count as filled.
+    """
+    style = material.grease_pencil if material is not None else None
+    if style is None or bpy.app.version >= (5, 2, 0):
+        return False
+    return bool(style.show_fill and not style.use_fill_holdout)

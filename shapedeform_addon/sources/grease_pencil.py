@@ -19,6 +19,7 @@ import numpy as np
 from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
+from .. import compat
 from ..errors import RigError
 from .prepared import Prepared
 from ..nodes import ORDER_INPUT, RIGGED
@@ -101,9 +102,7 @@ def prepare(obj, settings):
         raise RigError(f"'{obj.name}' has no strokes on the current frame")
     # A holdout fill cuts a hole; a stroke past the last slot is drawn unfilled: the extra
     # False at the end stands for it.
-    fills = np.array([slot.material is not None and slot.material.grease_pencil is not None
-                      and slot.material.grease_pencil.show_fill and not slot.material.grease_pencil.use_fill_holdout
-                      for slot in obj.material_slots] + [False])
+    fills = np.array([compat.fills_strokes(slot.material) for slot in obj.material_slots] + [False])
     rests, offsets, radii, filled, start = [], [np.zeros(1, np.int64)], [], [], 0
     for _, frame in frames:
         drawing = frame.drawing

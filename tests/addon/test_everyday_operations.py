@@ -1187,7 +1187,7 @@ def test_a_rig_rebuilt_after_undo_keeps_its_coarse_copy(addon, tmp_path):
     """Undo, redo and reopening drop the rigs, not the coarse copies of their graphs (keyed by
     the graph itself): rebuilding skipped remaking the copy, most of a rebuild's time."""
     rig = addon.shapedeform_addon.rig
-    bpy.ops.object.grease_pencil_add(type="MONKEY")  # a graph large enough to have a coarse copy
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=50, y_subdivisions=50, size=2.0)  # outline graph, coarse copy
     obj = bpy.context.active_object
     Rigged(obj)
     copies = [start.copy for start in rig.get(obj).deformer._starts if hasattr(start, "copy")]
