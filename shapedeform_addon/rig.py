@@ -214,7 +214,6 @@ def pose(obj, depsgraph=None, final=None):
     if owner is not None and owner.shapedeform.cage is not None:
         rig_format.follow_library_cage(owner.shapedeform.cage)  # here, never while drawing
     rig = get(obj)
-    owner = rig_format.owner_of(obj.original)
     frames = rig.frames(owner, depsgraph)
     settings = owner.shapedeform
     final = final_quality() if final is None else final
