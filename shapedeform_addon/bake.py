@@ -303,9 +303,19 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
     bl_label = "Bake Deformation"
     bl_options = {"REGISTER", "UNDO"}
 
-    frame_start: IntProperty(name="Start", description="First frame to bake", default=1)
-    frame_end: IntProperty(name="End", description="Last frame to bake", default=250)
+    # Not remembered between bakes: unset, they are the scene's frame range at the time.
+    frame_start: IntProperty(name="Start", description="First frame to bake (default: the scene's)", default=1,
+                             options={"SKIP_SAVE"})
+    frame_end: IntProperty(name="End", description="Last frame to bake (default: the scene's)", default=250,
+                           options={"SKIP_SAVE"})
     step: IntProperty(name="Step", description="Bake every n-th frame", default=1, min=1)
+
+    @classmethod
+    def poll(cls, context):
+        if not _targets(context):
+            cls.poll_message_set("Select bound objects to bake their deformation")
+            return False
+        return True
 
     def _start(self, context):
         if not self.properties.is_property_set("frame_start"):
@@ -396,6 +406,13 @@ class SHAPEDEFORM_OT_clear_bake(bpy.types.Operator):
     bl_idname = "shapedeform.clear_bake"
     bl_label = "Clear Bake"
     bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if not _targets(context):
+            cls.poll_message_set("Select bound objects to clear their bake")
+            return False
+        return True
 
     def execute(self, context):
         targets = _targets(context)

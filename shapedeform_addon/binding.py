@@ -16,6 +16,28 @@ from .errors import RigError
 GENERATING = {"MIRROR", "ARRAY", "SCREW", "BOOLEAN", "GREASE_PENCIL_MIRROR", "GREASE_PENCIL_ARRAY"}
 
 
+def refusal(obj):
+    """Why ``obj`` cannot be bound, judged without reading its geometry ("" when it may be).
+
+    Cheap enough for an operator's poll: the interface greys Bind out with this as its tooltip.
+    """
+    if obj is None:
+        return "No active object to rig"
+    settings = obj.shapedeform
+    if rig_format.is_follower(obj):
+        owner = settings.cage.shapedeform.rig
+        return f"'{obj.name}' follows the rig of '{owner.name}': unbind it first to give it its own"
+    if settings.is_bound:
+        return f"'{obj.name}' is already bound"
+    if settings.rig is not None:
+        return f"'{obj.name}' is part of the rig of '{settings.rig.name}'"
+    try:
+        sources.kind_of(obj)
+    except RigError as err:
+        return str(err)
+    return ""
+
+
 def bind(obj):
     """Rig ``obj``; returns its :class:`rig.Rig` and advice for the user ("" when none).
 
@@ -24,16 +46,10 @@ def bind(obj):
     RigError
         The object cannot be rigged; the message says why and nothing was changed.
     """
-    if obj is None:
-        raise RigError("No active object to rig")
+    reason = refusal(obj)
+    if reason:
+        raise RigError(reason)
     settings = obj.shapedeform
-    if rig_format.is_follower(obj):
-        owner = settings.cage.shapedeform.rig
-        raise RigError(f"'{obj.name}' follows the rig of '{owner.name}': unbind it first to give it its own")
-    if settings.is_bound:
-        raise RigError(f"'{obj.name}' is already bound")
-    if settings.rig is not None:
-        raise RigError(f"'{obj.name}' is part of the rig of '{settings.rig.name}'")
     kind = sources.kind_of(obj)
     prepared = sources.module_for(obj).prepare(obj, settings)
     copied = rig_format.modifiers_of(obj)

@@ -263,6 +263,13 @@ class SHAPEDEFORM_OT_drag(bpy.types.Operator):
     bl_label = "Drag Handle"
     bl_options = {"REGISTER", "UNDO", "BLOCKING"}
 
+    @classmethod
+    def poll(cls, context):
+        if rig_format.active_rig(context) is None:
+            cls.poll_message_set("Select a bound object or one of its handles to drag")
+            return False
+        return True
+
     def invoke(self, context, event):
         obj = rig_format.active_rig(context)
         if obj is None:

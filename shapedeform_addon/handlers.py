@@ -30,15 +30,24 @@ def paused():
         _busy = was
 
 
-def _report(message):
-    """Show why an update failed in the status bar (no window when headless)."""
-    context = bpy.context
-    workspace = getattr(context, "workspace", None)
-    if workspace is not None:
-        try:
-            workspace.status_text_set(message or None)
-        except (AttributeError, RuntimeError):
-            pass
+# The status bar shows our message until we clear it: whether one is up.
+_status_shown = False
+
+
+def _report(messages):
+    """Show why updates failed in the status bar, or, once they work again, clear what an
+    earlier failure showed (and nothing else's text)."""
+    global _status_shown
+    if not messages and not _status_shown:
+        return
+    workspace = getattr(bpy.context, "workspace", None)
+    if workspace is None:
+        return  # no window (headless): the owner's status property still says why
+    try:
+        workspace.status_text_set("; ".join(dict.fromkeys(messages)) or None)
+    except (AttributeError, RuntimeError):
+        return
+    _status_shown = bool(messages)
 
 
 def _pose(objects, depsgraph):
@@ -54,12 +63,9 @@ def _pose(objects, depsgraph):
     if not objects:
         return
     with paused():  # writing the cages makes Blender call us back
-        for obj in objects:
-            if rig_format.is_baked(obj):
-                continue  # its bake plays (see bake.py)
-            message = rig.pose_safely(obj, depsgraph)
-            if message:
-                _report(message)
+        messages = [rig.pose_safely(obj, depsgraph) for obj in objects
+                    if not rig_format.is_baked(obj)]  # a baked rig's keys play (see bake.py)
+    _report([m for m in messages if m])
     if not rig.final_quality() and rig.unsettled(bpy.context.scene):
         if bpy.app.timers.is_registered(refine):
             bpy.app.timers.unregister(refine)  # still moving: wait for the next pause
@@ -77,11 +83,9 @@ def refine():
     if not objects:
         return None
     with paused():
-        for obj in objects:
-            message = rig.pose_safely(obj, final=True)
-            if message:
-                _report(message)
+        messages = [rig.pose_safely(obj, final=True) for obj in objects]
         bpy.context.view_layer.update()
+    _report([m for m in messages if m])
     return None  # once
 
 

@@ -1,12 +1,16 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Operators: bind, unbind, add and remove handles.
 
-Every operator refuses bad input with a message in the status bar and changes nothing.
+Every operator refuses bad input with a message in the status bar and changes nothing; where the
+context alone rules it out, its poll says why (the interface greys it out with that tooltip, and
+a script's call raises RuntimeError with it). Each leaves the object in the mode it found it in.
 """
+
+from contextlib import contextmanager
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, FloatVectorProperty
+from bpy.props import EnumProperty, FloatVectorProperty, StringProperty
 
 from ..solver.rigging.plane import transform_points
 from . import binding, handles, rig, rig_format, sources
@@ -21,12 +25,18 @@ class SHAPEDEFORM_OT_bind(bpy.types.Operator):
     bl_label = "Bind"
     bl_options = {"REGISTER", "UNDO"}
 
+    @classmethod
+    def poll(cls, context):
+        reason = binding.refusal(context.active_object)
+        if reason:
+            cls.poll_message_set(reason)
+        return not reason
+
     def execute(self, context):
         obj = context.active_object
-        if obj is not None and obj.mode != "OBJECT":
-            bpy.ops.object.mode_set(mode="OBJECT")
         try:
-            bound, advice = binding.bind(obj)
+            with _in_object_mode(obj):
+                bound, advice = binding.bind(obj)
         except RigError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
@@ -44,18 +54,28 @@ class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
     bl_label = "Unbind"
     bl_options = {"REGISTER", "UNDO"}
 
-    def execute(self, context):
+    @staticmethod
+    def _target(context):
         active = context.active_object
         # A duplicate that follows a rig stops following it; otherwise the rig the user means goes.
-        obj = active if active is not None and rig_format.is_follower(active) else rig_format.active_rig(context)
+        return active if active is not None and rig_format.is_follower(active) else rig_format.active_rig(context)
+
+    @classmethod
+    def poll(cls, context):
+        if cls._target(context) is None:
+            cls.poll_message_set("The active object is not bound")
+            return False
+        return True
+
+    def execute(self, context):
+        obj = self._target(context)
         if obj is None:
             self.report({"ERROR"}, "The active object is not bound")
             return {"CANCELLED"}
-        if obj.mode != "OBJECT":
-            bpy.ops.object.mode_set(mode="OBJECT")
         owner = rig_format.owner_of(obj)
         try:
-            lost = binding.unbind(obj)
+            with _in_object_mode(context.active_object):
+                lost = binding.unbind(obj)
         except RigError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
@@ -73,10 +93,18 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
     bl_label = "Add Handle"
     bl_options = {"REGISTER", "UNDO"}
 
-    location: FloatVectorProperty(name="Location", subtype="TRANSLATION", size=3,
+    # Not remembered between calls: a plain Add Handle after adding a pin adds a handle again.
+    location: FloatVectorProperty(name="Location", subtype="TRANSLATION", size=3, options={"SKIP_SAVE"},
                                   description="World location of the handle (projected onto the shape's plane)")
-    kind: EnumProperty(name="Kind", items=PIN_KINDS, default="POSITION",
+    kind: EnumProperty(name="Kind", items=PIN_KINDS, default="POSITION", options={"SKIP_SAVE"},
                        description="A handle that moves the shape, or a pin that sets its depth or stiffness")
+
+    @classmethod
+    def poll(cls, context):
+        if rig_format.active_rig(context) is None:
+            cls.poll_message_set("Bind the object before adding handles")
+            return False
+        return True
 
     def execute(self, context):
         active = context.active_object
@@ -134,10 +162,24 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
     bl_label = "Remove Handle"
     bl_options = {"REGISTER", "UNDO"}
 
+    handle: StringProperty(name="Handle", options={"SKIP_SAVE"},
+                           description="Name of the handle Empty to remove (empty: the selected handles)")
+
+    @classmethod
+    def poll(cls, context):
+        if rig_format.active_rig(context) is None and not any(map(handles.rig_of, context.selected_objects)):
+            cls.poll_message_set("Select the handles to remove")
+            return False
+        return True
+
     def execute(self, context):
-        selected = [o for o in context.selected_objects if handles.rig_of(o) is not None]
+        if self.handle:
+            named = bpy.data.objects.get(self.handle)
+            selected = [named] if named is not None and handles.rig_of(named) is not None else []
+        else:
+            selected = [o for o in context.selected_objects if handles.rig_of(o) is not None]
         if not selected:
-            self.report({"ERROR"}, "Select the handles to remove")
+            self.report({"ERROR"}, f"'{self.handle}' is not a handle" if self.handle else "Select the handles to remove")
             return {"CANCELLED"}
         owners = {handles.rig_of(o) for o in selected}
         for owner in owners:
@@ -150,6 +192,28 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
             handles.remove(owner, set(selected))
             rig.pose_safely(owner, context.evaluated_depsgraph_get())
         return {"FINISHED"}
+
+
+@contextmanager
+def _in_object_mode(obj):
+    """Run the body in Object Mode (binding reads and swaps the object's data), then go back to
+    the mode ``obj`` was in, whether the body worked or refused."""
+    was = obj.mode if obj is not None else "OBJECT"
+    if was != "OBJECT":
+        bpy.ops.object.mode_set(mode="OBJECT")
+    try:
+        yield
+    finally:
+        if was != "OBJECT" and _still_active(obj):
+            bpy.ops.object.mode_set(mode=was)
+
+
+def _still_active(obj):
+    """``obj`` outlived the operator (unbinding deletes a cage) and is still the active object."""
+    try:
+        return bpy.context.view_layer.objects.active == obj
+    except ReferenceError:
+        return False
 
 
 classes = (

@@ -55,6 +55,10 @@ def _pin_reach_changed(self, context):
         rig.pose_safely(owner, context.evaluated_depsgraph_get())
 
 
+# Rig state and bind-time choices: keying them would animate nothing (or break the rig), so they
+# do not offer keyframes; the energy's weights, budgets and pins' amounts do.
+NOT_KEYABLE = set()
+
 PIN_KINDS = [
     ("POSITION", "Position", "A handle: the shape follows where it is moved and turned"),
     ("OVERLAP", "Overlap", "Brings the shape near it in front of (or, negative, behind) other parts where they overlap"),
@@ -71,17 +75,18 @@ class SHAPEDEFORM_PG_handle(bpy.types.PropertyGroup):
 class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
     """Shape Deform settings and state of one object."""
 
-    is_bound: BoolProperty(name="Bound", description="The object is rigged", default=False)
-    kind: StringProperty(name="Kind", description="What was rigged: MESH, IMAGE, CURVE or GREASEPENCIL")
+    is_bound: BoolProperty(name="Bound", description="The object is rigged", default=False, options=NOT_KEYABLE)
+    kind: StringProperty(name="Kind", description="What was rigged: MESH, IMAGE, CURVE or GREASEPENCIL",
+                          options=NOT_KEYABLE)
     handles: CollectionProperty(type=SHAPEDEFORM_PG_handle, name="Handles")
-    active_handle: IntProperty(name="Active Handle", default=0, min=0)
+    active_handle: IntProperty(name="Active Handle", default=0, min=0, options=NOT_KEYABLE)
     handle_collection: PointerProperty(type=bpy.types.Collection, name="Handle Collection")
     original_data: PointerProperty(type=bpy.types.Mesh, name="Original Mesh",
                                    description="An image plane's quad, given back on unbind")
     rig: PointerProperty(type=bpy.types.Object, name="Rig",
                          description="On a handle or a cage: the bound object whose rig it belongs to")
     pin_kind: EnumProperty(name="Kind", description="What this handle of a rig does", items=PIN_KINDS,
-                           default="POSITION")
+                           default="POSITION", options=NOT_KEYABLE)
     in_front: FloatProperty(
         name="In Front", description="On an overlap pin: how far in front of other parts the shape near it is "
                                       "where they overlap (negative: behind); pins add up where they meet",
@@ -121,15 +126,17 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
         items=[("AUTO", "Automatic", "The mesh itself when it is small, an outline graph when it is dense"),
                ("OWN", "Mesh", "The mesh is its own graph: its boundary loops, vertices and edges"),
                ("OUTLINE", "Outline", "A graph built from the outline; every vertex is bound to it")],
-        default="AUTO")
+        default="AUTO", options=NOT_KEYABLE)
     density: IntProperty(name="Graph Density", description="About how many interior points the built graph has",
-                         default=300, min=20, max=5000)
+                         default=300, min=20, max=5000, soft_max=2000, options=NOT_KEYABLE)
     region_size: FloatProperty(name="Handle Region", description="Radius of a handle's region, as a fraction of the shape's size",
-                               default=0.04, min=0.001, max=0.5, subtype='FACTOR')
-    layers: StringProperty(name="Layers", description="Grease pencil layers to rig, comma separated (empty: all)")
+                               default=0.04, min=0.001, max=0.5, subtype='FACTOR', options=NOT_KEYABLE)
+    layers: StringProperty(name="Layers", description="Grease pencil layers to rig, comma separated (empty: all)",
+                            options=NOT_KEYABLE)
     show_overlay: BoolProperty(name="Show Graph", description="Draw the graph and handle regions in the viewport",
-                               default=False)
-    status: StringProperty(name="Status", description="Why the last update failed (empty when it worked)")
+                               default=False, options=NOT_KEYABLE)
+    status: StringProperty(name="Status", description="Why the last update failed (empty when it worked)",
+                            options=NOT_KEYABLE)
 
 
 classes = (

@@ -4,7 +4,7 @@
 import bpy
 
 from . import compat, keymaps, nodes
-from .rig_format import active_rig, is_baked, is_follower, modifiers_of
+from .rig_format import active_rig, is_baked, is_follower, modifiers_of, present
 from .sources import grease_pencil
 
 
@@ -13,8 +13,8 @@ KIND_ICONS = {"POSITION": "EMPTY_DATA", "OVERLAP": "SELECT_SUBTRACT", "STARCH": 
 
 class SHAPEDEFORM_UL_handles(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0):
-        if item.object is None:
-            layout.label(text="(deleted)", icon="ERROR")
+        if not present(item.object):  # deleted in the viewport: the rig no longer uses it
+            layout.label(text=f"{item.object.name if item.object else ''} (deleted)", icon="ERROR")
             return
         kind = item.object.shapedeform.pin_kind
         row = layout.row()
@@ -57,12 +57,14 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
         layout.label(text="Handles")
         row = layout.row()
         row.template_list("SHAPEDEFORM_UL_handles", "", settings, "handles", settings, "active_handle", rows=3)
+        active = settings.handles[settings.active_handle].object if len(settings.handles) > settings.active_handle else None
         buttons = row.column(align=True)
         buttons.operator("shapedeform.add_handle", text="", icon="ADD")
         buttons.operator("shapedeform.add_handle", text="", icon=KIND_ICONS["OVERLAP"]).kind = "OVERLAP"
         buttons.operator("shapedeform.add_handle", text="", icon=KIND_ICONS["STARCH"]).kind = "STARCH"
-        buttons.operator("shapedeform.remove_handle", text="", icon="REMOVE")
-        active = settings.handles[settings.active_handle].object if len(settings.handles) > settings.active_handle else None
+        remove = buttons.operator("shapedeform.remove_handle", text="", icon="REMOVE")
+        if active is not None:
+            remove.handle = active.name  # the list's active item, as every list's "-" does
         if active is not None and active.shapedeform.pin_kind != "POSITION":
             col = layout.column(align=True)
             col.label(text=f"{active.shapedeform.pin_kind.title()} Pin '{active.name}'")

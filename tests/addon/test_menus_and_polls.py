@@ -1,0 +1,168 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Where users find the operators and what Blender's interface asks of them: menu entries,
+polls that say why an operator does not apply, properties that are not remembered or keyed
+where that would surprise, the mode an operator leaves the object in."""
+
+from types import SimpleNamespace
+
+import bpy
+import pytest
+from mathutils import Matrix
+
+import rig_checks as checks
+from test_rig_mesh import grid, rig_with_two_handles
+
+OPERATORS = ("bind", "unbind", "add_handle", "remove_handle", "drag", "bake", "clear_bake")
+
+
+class MenuLayout:
+    """Stands in for a menu's layout headless: records the menus and operators drawn."""
+
+    def __init__(self):
+        self.items = []
+
+    def operator(self, idname, **_):
+        self.items.append(idname)
+        return SimpleNamespace()
+
+    def menu(self, idname, **_):
+        self.items.append(idname)
+
+    def separator(self, **_):
+        pass
+
+
+def drawn_by(menu_name):
+    """What the draw functions the extension appended to Blender's ``menu_name`` draw."""
+    menu = getattr(bpy.types, menu_name)
+    ours = [f for f in menu._dyn_ui_initialize() if f.__module__.endswith(".menus")]
+    layout = MenuLayout()
+    for draw in ours:
+        draw(SimpleNamespace(layout=layout), bpy.context)
+    return layout.items
+
+
+def test_every_operator_is_in_the_object_menu_and_the_bake_under_animation(addon):
+    assert drawn_by("VIEW3D_MT_object") == ["SHAPEDEFORM_MT_object"]
+    layout = MenuLayout()
+    bpy.types.SHAPEDEFORM_MT_object.draw(SimpleNamespace(layout=layout), bpy.context)
+    assert sorted(set(layout.items)) == sorted(f"shapedeform.{name}" for name in OPERATORS)
+    for idname in layout.items:  # each one registered
+        getattr(bpy.ops.shapedeform, idname.split(".")[1]).get_rna_type()
+    assert drawn_by("VIEW3D_MT_object_animation") == ["shapedeform.bake"]
+    for edit_menu in ("VIEW3D_MT_edit_mesh", "VIEW3D_MT_edit_curve", "VIEW3D_MT_edit_greasepencil"):
+        assert drawn_by(edit_menu) == ["shapedeform.add_handle"]
+
+
+@pytest.mark.parametrize("name, message", [
+    ("add_handle", "Bind the object before adding handles"),
+    ("remove_handle", "Select the handles to remove"),
+    ("unbind", "not bound"),
+    ("drag", "Select a bound object"),
+    ("bake", "Select bound objects to bake"),
+    ("clear_bake", "Select bound objects to clear"),
+])
+def test_operators_that_need_a_rig_say_so_in_their_poll(addon, name, message):
+    """Greyed out in menus and panels with the reason as tooltip; a script's call names it."""
+    grid()
+    operator = getattr(bpy.ops.shapedeform, name)
+    assert not operator.poll()
+    with pytest.raises(RuntimeError, match=message):
+        operator()
+    assert bpy.ops.shapedeform.bind.poll()
+
+
+def test_bind_is_greyed_out_for_what_it_cannot_rig(addon):
+    bpy.ops.object.light_add(type="POINT")
+    assert not bpy.ops.shapedeform.bind.poll()
+    with pytest.raises(RuntimeError, match="light object: Shape Deform rigs meshes"):
+        bpy.ops.shapedeform.bind()
+    obj, _, _ = rig_with_two_handles()
+    bpy.context.view_layer.objects.active = obj
+    with pytest.raises(RuntimeError, match="already bound"):
+        bpy.ops.shapedeform.bind()
+
+
+@pytest.mark.parametrize("name, properties", [
+    ("add_handle", ("kind", "location")), ("remove_handle", ("handle",)), ("bake", ("frame_start", "frame_end"))])
+def test_buttons_and_menus_do_not_reuse_the_last_calls_choices(addon, name, properties):
+    """Blender's interface starts an operator with its last call's properties unless they skip
+    saving: the panel's "+" after its overlap-pin button would add another pin, a bake would keep
+    the last shot's frame range. (A script's call never reuses them, so only the flag shows it.)"""
+    rna = getattr(bpy.ops.shapedeform, name).get_rna_type()
+    for prop in properties:
+        assert rna.properties[prop].is_skip_save, prop
+
+
+def test_the_lists_remove_button_removes_its_active_handle_not_the_selection(addon):
+    obj, left, right = rig_with_two_handles()
+    obj.shapedeform.active_handle = 0  # the list's active item: the left handle
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    right.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.remove_handle(handle=left.name) == {"FINISHED"}
+    assert [h.object for h in obj.shapedeform.handles] == [right]
+    with pytest.raises(RuntimeError, match="'Nope' is not a handle"):
+        bpy.ops.shapedeform.remove_handle(handle="Nope")
+
+
+def test_rig_state_offers_no_keyframes_but_the_energy_and_pins_do(addon):
+    properties = bpy.types.Object.bl_rna.properties["shapedeform"].fixed_type.properties
+    for name in ("is_bound", "kind", "active_handle", "pin_kind", "graph_mode", "density", "region_size",
+                 "layers", "show_overlay", "status"):
+        assert not properties[name].is_animatable, name
+    for name in ("weight_laplacian", "weight_mvc", "weight_edge", "preserve_area", "prevent_flips",
+                 "iterations", "render_iterations", "in_front", "stiffness", "extent"):
+        assert properties[name].is_animatable, name
+
+
+def test_bind_and_unbind_leave_the_object_in_the_mode_they_found_it_in(addon):
+    obj = grid()
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert obj.mode == "EDIT" and obj.shapedeform.is_bound
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert obj.mode == "EDIT" and not obj.shapedeform.is_bound
+
+    flat = grid("Flat")
+    flat.data.transform(Matrix.Diagonal((1.0, 0.0, 1.0, 1.0)))  # no area: cannot be rigged
+    bpy.ops.object.mode_set(mode="EDIT")
+    with pytest.raises(RuntimeError):
+        bpy.ops.shapedeform.bind()
+    assert flat.mode == "EDIT" and not flat.shapedeform.is_bound
+
+
+def test_the_status_bar_message_of_a_failed_update_goes_once_updates_work(addon):
+    handlers = addon.shapedeform_addon.handlers
+    if getattr(bpy.context, "workspace", None) is None:
+        pytest.skip("no workspace to show a status bar message")
+    obj, left, _ = rig_with_two_handles()
+    y = left.location.y
+    left.location.y = float("nan")  # a driver gone wrong: the update fails, the pose stays
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status and handlers._status_shown
+    left.location.y = y + 0.1
+    bpy.context.view_layer.update()
+    assert not obj.shapedeform.status and not handlers._status_shown
+
+
+def test_deleting_a_handles_empty_removes_the_handle(addon):
+    """As the README says beside the list's "-": X in the viewport works too."""
+    obj, left, right = rig_with_two_handles()
+    middle = checks.add_handle(obj, checks.world(obj, [0.0, 0.0, 0.0]))
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    middle.select_set(True)
+    bpy.context.view_layer.objects.active = middle
+    assert bpy.ops.object.delete() == {"FINISHED"}
+    right.location.y += 0.3
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    present = addon.shapedeform_addon.rig_format.present
+    assert [h.object for h in obj.shapedeform.handles if present(h.object)] == [left, right]
+    assert len(addon.shapedeform_addon.rig.get(obj).handle_objects) == 2
+    # The list shows the entry as deleted; its "-" removes it.
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.remove_handle(handle=middle.name) == {"FINISHED"}
+    assert [h.object for h in obj.shapedeform.handles] == [left, right]
