@@ -23,6 +23,8 @@ class SHAPEDEFORM_UL_handles(bpy.types.UIList):
 
 
 class SHAPEDEFORM_PT_panel(bpy.types.Panel):
+    """Bind, or the rig's handles and pins; sub-panels hold the solver's settings and animation."""
+
     bl_label = "Shape Deform"
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
@@ -30,6 +32,7 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
+        layout.use_property_split = True
         active = context.active_object
         if active is None:
             layout.label(text="No active object")
@@ -54,37 +57,56 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
             layout.label(text=f"'{obj.name}' is not in this scene (deleted?): Unbind removes its rig", icon="INFO")
         if settings.status:
             layout.label(text=settings.status, icon="ERROR")
-        layout.label(text="Handles")
-        row = layout.row()
-        row.template_list("SHAPEDEFORM_UL_handles", "", settings, "handles", settings, "active_handle", rows=3)
-        active = settings.handles[settings.active_handle].object if len(settings.handles) > settings.active_handle else None
-        buttons = row.column(align=True)
-        buttons.operator("shapedeform.add_handle", text="", icon="ADD")
-        buttons.operator("shapedeform.add_handle", text="", icon=KIND_ICONS["OVERLAP"]).kind = "OVERLAP"
-        buttons.operator("shapedeform.add_handle", text="", icon=KIND_ICONS["STARCH"]).kind = "STARCH"
-        remove = buttons.operator("shapedeform.remove_handle", text="", icon="REMOVE")
-        if active is not None:
-            remove.handle = active.name  # the list's active item, as every list's "-" does
-        if active is not None and active.shapedeform.pin_kind != "POSITION":
-            col = layout.column(align=True)
-            col.label(text=f"{active.shapedeform.pin_kind.title()} Pin '{active.name}'")
-            col.prop(active.shapedeform, "in_front" if active.shapedeform.pin_kind == "OVERLAP" else "stiffness")
-            col.prop(active.shapedeform, "extent")
+        _draw_handles(layout, settings)
         layout.prop(settings, "region_size")
         _draw_modifier_inputs(layout, obj)
-        col = layout.column(align=True)
-        col.label(text="Energy Weights")
+        layout.prop(settings, "show_overlay")
+
+
+class _RigSubPanel:
+    """A sub-panel shown while the active object belongs to a rig of its own."""
+
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Shape Deform"
+    bl_parent_id = "SHAPEDEFORM_PT_panel"
+
+    @classmethod
+    def poll(cls, context):
+        active = context.active_object
+        return active is not None and not is_follower(active) and active_rig(context) is not None
+
+
+class SHAPEDEFORM_PT_solver(_RigSubPanel, bpy.types.Panel):
+    """What the rig minimises and how long it may take."""
+
+    bl_label = "Solver"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        settings = active_rig(context).shapedeform
+        layout = self.layout
+        layout.use_property_split = True
+        col = layout.column(align=True, heading="Energy Weights")
         col.prop(settings, "weight_laplacian")
         col.prop(settings, "weight_mvc")
         col.prop(settings, "weight_edge")
-        layout.prop(settings, "preserve_area")
-        layout.prop(settings, "prevent_flips")
+        col = layout.column(heading="Keep")
+        col.prop(settings, "preserve_area")
+        col.prop(settings, "prevent_flips")
         col = layout.column(align=True, heading="Iterations")
         col.prop(settings, "iterations")
         col.prop(settings, "render_iterations")
-        layout.prop(settings, "show_overlay")
-        col = layout.column(align=True)
-        col.label(text="Pose and Animate")
+
+
+class SHAPEDEFORM_PT_animation(_RigSubPanel, bpy.types.Panel):
+    """Posing with the mouse, and baking to keyframes."""
+
+    bl_label = "Pose and Animate"
+
+    def draw(self, context):
+        obj = active_rig(context)
+        col = self.layout.column(align=True)
         # The drag needs the viewport's own region, so it runs from its key, not a button here.
         col.label(text=f"Drag handles: {keymaps.shortcut('shapedeform.drag')} in the viewport", icon="MOUSE_LMB_DRAG")
         if is_baked(obj):
@@ -92,6 +114,26 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
             col.operator("shapedeform.clear_bake", icon="TRASH")
         else:
             col.operator("shapedeform.bake", icon="REC")
+
+
+def _draw_handles(layout, settings):
+    """The handle list, its buttons, and the active pin's values."""
+    layout.label(text="Handles")
+    row = layout.row()
+    row.template_list("SHAPEDEFORM_UL_handles", "", settings, "handles", settings, "active_handle", rows=3)
+    active = settings.handles[settings.active_handle].object if len(settings.handles) > settings.active_handle else None
+    buttons = row.column(align=True)
+    buttons.operator("shapedeform.add_handle", text="", icon="ADD")
+    buttons.operator("shapedeform.add_handle", text="", icon=KIND_ICONS["OVERLAP"]).kind = "OVERLAP"
+    buttons.operator("shapedeform.add_handle", text="", icon=KIND_ICONS["STARCH"]).kind = "STARCH"
+    remove = buttons.operator("shapedeform.remove_handle", text="", icon="REMOVE")
+    if active is not None:
+        remove.handle = active.name  # the list's active item, as every list's "-" does
+    if active is not None and active.shapedeform.pin_kind != "POSITION":
+        col = layout.column(align=True)
+        col.label(text=f"{active.shapedeform.pin_kind.title()} Pin '{active.name}'")
+        col.prop(active.shapedeform, "in_front" if active.shapedeform.pin_kind == "OVERLAP" else "stiffness")
+        col.prop(active.shapedeform, "extent")
 
 
 def _draw_modifier_inputs(layout, obj):
@@ -113,6 +155,6 @@ def _draw_modifier_inputs(layout, obj):
                          icon="ERROR" if on else "INFO")
 
 
-classes = (SHAPEDEFORM_UL_handles, SHAPEDEFORM_PT_panel)
+classes = (SHAPEDEFORM_UL_handles, SHAPEDEFORM_PT_panel, SHAPEDEFORM_PT_solver, SHAPEDEFORM_PT_animation)
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -11,8 +11,10 @@ from test_rig_mesh import grid
 
 
 def test_panel_is_in_its_own_tab(addon):
-    panel = bpy.types.SHAPEDEFORM_PT_panel
-    assert (panel.bl_space_type, panel.bl_region_type, panel.bl_category) == ("VIEW_3D", "UI", "Shape Deform")
+    for name in PANELS:
+        panel = getattr(bpy.types, name)
+        assert (panel.bl_space_type, panel.bl_region_type, panel.bl_category) == ("VIEW_3D", "UI", "Shape Deform")
+        assert name == PANELS[0] or panel.bl_parent_id == PANELS[0]
 
 
 def test_the_panel_names_the_drag_key_the_key_map_binds(addon):
@@ -67,11 +69,18 @@ class RecordingLayout:
     row = column
 
 
+PANELS = ("SHAPEDEFORM_PT_panel", "SHAPEDEFORM_PT_solver", "SHAPEDEFORM_PT_animation")
+
+
 def drawn(context, labels=False):
-    """The operators and properties the panel draws (with ``labels``, the labels' texts)."""
-    panel = SimpleNamespace(layout=RecordingLayout())
-    bpy.types.SHAPEDEFORM_PT_panel.draw(panel, context)
-    return panel.layout.labels if labels else panel.layout.record
+    """The operators and properties the panel and the sub-panels it shows draw (with
+    ``labels``, the labels' texts)."""
+    layout = RecordingLayout()
+    for name in PANELS:
+        panel = getattr(bpy.types, name)
+        if not hasattr(panel, "poll") or panel.poll(context):
+            panel.draw(SimpleNamespace(layout=layout), context)
+    return layout.labels if labels else layout.record
 
 
 def test_panel_offers_bind_then_handles_weights_and_bake_then_clear_bake(addon):
