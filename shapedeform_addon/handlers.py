@@ -1,10 +1,11 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """App handlers that keep rigs live: handle moves, frame changes, file loads and undo.
 
-While the animator works, solves have the Viewport iteration budget; one that stops short of
-converging leaves a pose a render (Render budget) would not give. A one-shot timer then solves
-those rigs again with the Render budget once the updates pause, so what stays on screen is
-what renders, as Blender's viewport refines its samples when the view stops changing.
+While the animator drags, plays or scrubs, solves have the Viewport iteration budget; one that
+stops short of converging leaves a pose a render (Render budget) would not give. A one-shot
+timer then solves those rigs again with the Render budget once the updates pause, so what stays
+on screen is what renders, as Blender's viewport refines its samples when the view stops
+changing. A frame stepped to is solved with the Render budget at once.
 """
 
 from contextlib import contextmanager
@@ -50,8 +51,9 @@ def _report(messages):
     _status_shown = bool(messages)
 
 
-def _pose(objects, depsgraph):
-    """Pose ``objects``' rigs and write their cages.
+def _pose(objects, depsgraph, final=None):
+    """Pose ``objects``' rigs and write their cages (``final``: with the Render budget; by
+    default, :func:`rig.final_quality`).
 
     Blender evaluates again by itself when a depsgraph_update_post or frame_change_post
     handler tagged data (a second pass without callbacks), so what is evaluated when the
@@ -63,10 +65,10 @@ def _pose(objects, depsgraph):
     if not objects:
         return
     with paused():  # writing the cages makes Blender call us back
-        messages = [rig.pose_safely(obj, depsgraph) for obj in objects
+        messages = [rig.pose_safely(obj, depsgraph, final) for obj in objects
                     if not rig_format.is_baked(obj)]  # a baked rig's keys play (see bake.py)
     _report([m for m in messages if m])
-    if not rig.final_quality() and rig.unsettled(bpy.context.scene):
+    if not (final or rig.final_quality()) and rig.unsettled(bpy.context.scene):
         if bpy.app.timers.is_registered(refine):
             bpy.app.timers.unregister(refine)  # still moving: wait for the next pause
         bpy.app.timers.register(refine, first_interval=REFINE_AFTER)
@@ -122,7 +124,16 @@ def on_frame_change(scene, depsgraph):
     collection it instances from elsewhere included)."""
     if _busy:
         return
-    _pose([o for o in rig_format.owners(scene) if o.shapedeform.handles], depsgraph)
+    # A frame stepped to stays on screen: solve it as a render would at once, rather than
+    # showing the Viewport budget's pose and, a moment later, the refined one (a visible jump
+    # on every step where a solve stops short). Playback and scrubbing keep the Viewport budget.
+    _pose([o for o in rig_format.owners(scene) if o.shapedeform.handles], depsgraph, final=not _interactive())
+
+
+def _interactive():
+    """Whether frames are changing continuously: playback or scrubbing in a window."""
+    screen = getattr(bpy.context, "screen", None)
+    return screen is not None and (screen.is_animation_playing or screen.is_scrubbing)
 
 
 @persistent
