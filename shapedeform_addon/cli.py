@@ -113,8 +113,11 @@ def _bake(args):
             raise _UsageError(f"--output: the folder {folder} does not exist")
     if args.objects:
         # The scene's objects and the rigs it shows through collection instances; a handle or
-        # cage of the scene's stands for its rig, as in the Bake operator.
-        shown = {o.name: o for o in rig_format.owners(scene)} | {o.name: o for o in scene.objects}
+        # cage stands for its rig, as in the Bake operator (an instanced rig's too).
+        owners = rig_format.owners(scene)
+        parts = [h.object for o in owners for h in o.shapedeform.handles if rig_format.present(h.object)]
+        parts += [o.shapedeform.cage for o in owners if o.shapedeform.cage is not None]
+        shown = {o.name: o for o in parts + owners + list(scene.objects)}
         missing = [name for name in args.objects if name not in shown]
         if missing:
             raise _UsageError(f"no object named {', '.join(map(repr, missing))} in scene '{scene.name}'")

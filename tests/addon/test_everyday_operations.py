@@ -1047,6 +1047,27 @@ def test_a_collection_instanced_in_another_scene_follows_its_handles(addon, only
     np.testing.assert_allclose(instanced_points(obj), posed, atol=1e-5)
 
 
+def test_the_command_line_bakes_an_instanced_rig_named_by_its_handle(addon, tmp_path, capsys):
+    """A shot shows the character only through a Collection Instance: ``--objects`` takes its
+    handle's name for its rig, as it takes a handle of the scene's own."""
+    character, obj = character_collection(tmp_path)
+    rig = Rigged(obj)
+    bpy.context.scene.collection.children.unlink(character)
+    shot = bpy.data.scenes.new("Shot")
+    instance = bpy.data.objects.new("Character Instance", None)
+    instance.instance_type, instance.instance_collection = "COLLECTION", character
+    shot.collection.objects.link(instance)
+    bpy.context.window.scene = shot
+    path = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    main = addon.shapedeform_addon.cli.main
+    name = obj.name
+    assert main(["bake", "--frames", "1-3", "--objects", rig.second.name]) == 0
+    assert f"baking frames 1-3 (step 1) of {name}" in capsys.readouterr().out
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert addon.shapedeform_addon.rig_format.is_baked(bpy.data.objects[name])
+
+
 def test_edits_made_while_the_extension_was_disabled_show_on_enable_and_on_open(addon, tmp_path, quiet):
     """With the extension disabled the animator moves a handle and duplicates the object, and
     saves. Enabled again (the timer's pass) and reopened, the owner shows its handles' pose and
