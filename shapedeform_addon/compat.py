@@ -71,13 +71,39 @@ def set_modifier_input(modifier, identifier, value):
 
 
 def fills_strokes(material):
-    """Whether a grease-pencil ``material`` fills every stroke drawn with it, closed or not.
+    """Whether a grease-pencil ``material`` may fill strokes drawn with it, closed or not.
 
-    Up to Blender 5.1 the material's Fill switch decides. 5.2 deprecates that switch (it reads
-    False on materials that fill) and decides fills per stroke, in a way not yet read here: there
-    only closed strokes count as filled.
+    Up to Blender 5.1 the material's Fill switch decides for every stroke drawn with it. 5.2
+    deprecates that switch (it reads False on materials that fill) and marks each filled stroke
+    itself (:func:`filled_strokes`); there a material fills unless its fill is a holdout, which
+    cuts a hole instead, as before.
     """
     style = material.grease_pencil if material is not None else None
-    if style is None or bpy.app.version >= (5, 2, 0):
+    if style is None:
         return False
+    if bpy.app.version >= (5, 2, 0):
+        return not style.use_fill_holdout
     return bool(style.show_fill and not style.use_fill_holdout)
+
+
+def filled_strokes(material_fills, material_index, fill_id):
+    """Per stroke, whether Blender draws it filled (cyclic or not).
+
+    Parameters
+    ----------
+    material_fills : (m,) bool ndarray
+        :func:`fills_strokes` of each material slot.
+    material_index : (s,) int ndarray
+        Each stroke's slot, within ``material_fills``.
+    fill_id : (s,) int ndarray
+        Blender 5.2's ``fill_id`` stroke attribute (0: not filled; strokes sharing an id make
+        one fill); ignored up to 5.1, which has none.
+
+    Returns
+    -------
+    (s,) bool ndarray
+    """
+    filled = material_fills[material_index]
+    if bpy.app.version >= (5, 2, 0):
+        filled = filled & (fill_id != 0)
+    return filled

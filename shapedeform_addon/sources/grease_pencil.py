@@ -113,9 +113,11 @@ def prepare(obj, settings):
         rests.append(points)
         offsets.append(curve_offsets[1:].astype(np.int64) + start)
         radii.append(_values(drawing, "radius", len(points), np.float32, 0.0))
-        # Blender fills a stroke drawn with a fill material whether or not it is closed.
+        # Blender fills a stroke whether or not it is closed (see compat.filled_strokes).
         material = np.clip(_values(drawing, "material_index", strokes, np.int32, 0), 0, len(fills) - 1)
-        filled.append(_values(drawing, "cyclic", strokes, bool, False) | fills[material])
+        fill_id = _values(drawing, "fill_id", strokes, np.int32, 0)
+        closed = _values(drawing, "cyclic", strokes, bool, False)
+        filled.append(closed | compat.filled_strokes(fills, material, fill_id))
         start += len(points)
     rest = np.concatenate(rests)
     if len(rest) == 0:

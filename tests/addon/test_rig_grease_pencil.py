@@ -76,11 +76,11 @@ def test_chosen_layers_only(addon):
         bpy.ops.shapedeform.bind()
 
 
-@pytest.mark.skipif(bpy.app.version >= (5, 2, 0), reason="5.2 decides fills per stroke, not yet read (compat.fills_strokes)")
 def test_strokes_inside_a_fill_move_with_it(addon):
     """The monkey's skin is drawn with a fill material on strokes that are not closed: Blender
     fills them, so the shape is the filled face, and its mouth and eyes move with it (only the
-    outlines made the shape: every inner stroke was an island of its own and stayed at rest)."""
+    outlines made the shape: every inner stroke was an island of its own and stayed at rest).
+    Up to 5.1 the material's Fill switch says so; 5.2 marks each filled stroke (``fill_id``)."""
     bpy.ops.object.grease_pencil_add(type="MONKEY")
     obj = bpy.context.active_object
     rest = drawing_points(obj, evaluated=False).copy()
