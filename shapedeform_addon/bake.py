@@ -25,7 +25,7 @@ import numpy as np
 from bpy.props import IntProperty
 
 from . import compat, handlers, rig, rig_format
-from .errors import RigError
+from .errors import RigError, poll_reason
 
 PREFIX = "sd_bake_"
 MARK = rig_format.BAKE_MARK
@@ -312,10 +312,7 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if not _targets(context):
-            cls.poll_message_set("Select bound objects to bake their deformation")
-            return False
-        return True
+        return poll_reason(cls, "" if _targets(context) else "Select bound objects to bake their deformation")
 
     def _start(self, context):
         if not self.properties.is_property_set("frame_start"):
@@ -409,10 +406,7 @@ class SHAPEDEFORM_OT_clear_bake(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if not _targets(context):
-            cls.poll_message_set("Select bound objects to clear their bake")
-            return False
-        return True
+        return poll_reason(cls, "" if _targets(context) else "Select bound objects to clear their bake")
 
     def execute(self, context):
         targets = _targets(context)

@@ -17,7 +17,7 @@ from bpy_extras import view3d_utils
 
 from ..solver.rigging.drag import nearest, parent_offset, ray_plane, transform_points, world_plane
 from . import handles, rig, rig_format
-from .errors import RigError
+from .errors import RigError, poll_reason
 
 HEADER = {
     False: "Shape Deform drag: click a handle to grab it (Ctrl+click: pin the shape there) | "
@@ -265,10 +265,8 @@ class SHAPEDEFORM_OT_drag(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if rig_format.active_rig(context) is None:
-            cls.poll_message_set("Select a bound object or one of its handles to drag")
-            return False
-        return True
+        return poll_reason(cls, "Select a bound object or one of its handles to drag"
+                           if rig_format.active_rig(context) is None else "")
 
     def invoke(self, context, event):
         obj = rig_format.active_rig(context)

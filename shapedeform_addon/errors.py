@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The add-on's error, and the small grammar of its messages. Imports nothing."""
+"""The add-on's error, the small grammar of its messages, and how an operator's poll says why
+it does not apply. Imports nothing."""
 
 
 class RigError(Exception):
@@ -13,3 +14,11 @@ def with_article(noun):
     have no silent or long-vowel exceptions such as "hour" or "unit".
     """
     return f"{'an' if noun[:1].lower() in 'aeiou' else 'a'} {noun}"
+
+
+def poll_reason(operator, reason):
+    """An operator's poll: True when ``reason`` is empty, else False with ``reason`` as what the
+    interface shows on the greyed-out button and a script's call raises."""
+    if reason:
+        operator.poll_message_set(reason)
+    return not reason

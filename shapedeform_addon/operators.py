@@ -14,7 +14,7 @@ from bpy.props import EnumProperty, FloatVectorProperty, StringProperty
 
 from ..solver.rigging.plane import transform_points
 from . import binding, handles, rig, rig_format, sources
-from .errors import RigError
+from .errors import RigError, poll_reason
 from .properties import PIN_KINDS
 
 
@@ -27,10 +27,7 @@ class SHAPEDEFORM_OT_bind(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        reason = binding.refusal(context.active_object)
-        if reason:
-            cls.poll_message_set(reason)
-        return not reason
+        return poll_reason(cls, binding.refusal(context.active_object))
 
     def execute(self, context):
         obj = context.active_object
@@ -62,10 +59,7 @@ class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if cls._target(context) is None:
-            cls.poll_message_set("The active object is not bound")
-            return False
-        return True
+        return poll_reason(cls, "The active object is not bound" if cls._target(context) is None else "")
 
     def execute(self, context):
         obj = self._target(context)
@@ -101,10 +95,8 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if rig_format.active_rig(context) is None:
-            cls.poll_message_set("Bind the object before adding handles")
-            return False
-        return True
+        return poll_reason(cls, "Bind the object before adding handles" if rig_format.active_rig(context) is None
+                           else "")
 
     def execute(self, context):
         active = context.active_object
@@ -167,10 +159,8 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if rig_format.active_rig(context) is None and not any(map(handles.rig_of, context.selected_objects)):
-            cls.poll_message_set("Select the handles to remove")
-            return False
-        return True
+        reachable = rig_format.active_rig(context) is not None or any(map(handles.rig_of, context.selected_objects))
+        return poll_reason(cls, "" if reachable else "Select the handles to remove")
 
     def execute(self, context):
         if self.handle:

@@ -19,6 +19,14 @@ def world(obj, local):
     return tuple(m[:3, :3] @ np.asarray(local, float) + m[:3, 3])
 
 
+def select_only(obj):
+    """Select ``obj`` alone and make it active, as a click in the viewport does."""
+    for other in bpy.context.selected_objects:
+        other.select_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+
+
 def add_handle(obj, location):
     bpy.context.view_layer.objects.active = obj
     assert bpy.ops.shapedeform.add_handle(location=location) == {"FINISHED"}

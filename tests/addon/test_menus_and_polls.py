@@ -97,9 +97,7 @@ def test_buttons_and_menus_do_not_reuse_the_last_calls_choices(addon, name, prop
 def test_the_lists_remove_button_removes_its_active_handle_not_the_selection(addon):
     obj, left, right = rig_with_two_handles()
     obj.shapedeform.active_handle = 0  # the list's active item: the left handle
-    for o in bpy.context.selected_objects:
-        o.select_set(False)
-    right.select_set(True)
+    checks.select_only(right)
     bpy.context.view_layer.objects.active = obj
     assert bpy.ops.shapedeform.remove_handle(handle=left.name) == {"FINISHED"}
     assert [h.object for h in obj.shapedeform.handles] == [right]
@@ -151,10 +149,7 @@ def test_deleting_a_handles_empty_removes_the_handle(addon):
     """As the README says beside the list's "-": X in the viewport works too."""
     obj, left, right = rig_with_two_handles()
     middle = checks.add_handle(obj, checks.world(obj, [0.0, 0.0, 0.0]))
-    for o in bpy.context.selected_objects:
-        o.select_set(False)
-    middle.select_set(True)
-    bpy.context.view_layer.objects.active = middle
+    checks.select_only(middle)
     assert bpy.ops.object.delete() == {"FINISHED"}
     right.location.y += 0.3
     bpy.context.view_layer.update()
