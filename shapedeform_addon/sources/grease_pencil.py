@@ -183,14 +183,33 @@ def restore_legacy(obj):
 
 
 def selected(obj):
-    """Layer-space rest positions (k, 3) of selected stroke points of the current drawings."""
+    """Layer-space rest positions (k, 3) of selected stroke points of the current drawings of
+    the layers Edit Mode edits (shown and unlocked)."""
     chosen = []
     for layer in obj.data.layers:
         frame = layer.current_frame()
-        if frame is None or frame.drawing is None:
+        if layer.hide or layer.lock or frame is None or frame.drawing is None:
             continue
         drawing = frame.drawing
         points = _points(drawing)
-        mask = _values(drawing, ".selection", len(points), bool, False)
-        chosen.append(points[mask])
+        chosen.append(points[_selection(drawing, len(points))])
     return np.concatenate(chosen).astype(np.float64) if chosen else np.empty((0, 3))
+
+
+def _selection(drawing, count):
+    """Which of a drawing's ``count`` points are selected (count,) bool.
+
+    Blender drops the ``.selection`` attribute when everything is selected (and a new drawing
+    has none), keeps it per stroke in Stroke select mode, and per point otherwise.
+    """
+    attribute = drawing.attributes.get(".selection")
+    if attribute is None:
+        return np.ones(count, dtype=bool)
+    values = np.zeros(len(attribute.data), dtype=np.float32 if attribute.data_type == "FLOAT" else bool)
+    attribute.data.foreach_get("value", values)
+    values = values > 0
+    if attribute.domain == "CURVE":
+        offsets = np.empty(len(drawing.curve_offsets), dtype=np.int64)
+        drawing.curve_offsets.foreach_get("value", offsets)
+        return np.repeat(values, np.diff(offsets)) if len(values) == len(offsets) - 1 else np.zeros(count, bool)
+    return values if len(values) == count else np.zeros(count, dtype=bool)

@@ -51,6 +51,38 @@ def test_add_handles_at_selected_grease_pencil_points(addon):
     np.testing.assert_allclose(sorted(map(tuple, handle_locations(obj))), sorted(expected), atol=1e-5)
 
 
+def test_grease_pencil_selection_as_blender_keeps_it(addon):
+    """Blender drops ``.selection`` when all is selected and keeps it per stroke in Stroke
+    select mode: both are read (Add Handle said nothing was selected); a hidden layer's points
+    are not Edit Mode's to select."""
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    selected = addon.shapedeform_addon.sources.grease_pencil.selected
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.grease_pencil.select_all(action="SELECT")
+    total = sum(len(layer.current_frame().drawing.attributes["position"].data) for layer in obj.data.layers)
+    assert len(selected(obj)) == total
+    obj.data.layers["Fills"].hide = True
+    assert len(selected(obj)) == len(obj.data.layers["Lines"].current_frame().drawing.attributes["position"].data)
+    obj.data.layers["Fills"].hide = False
+
+    bpy.ops.grease_pencil.select_all(action="DESELECT")
+    drawing = obj.data.layers["Lines"].current_frame().drawing
+    for layer in obj.data.layers:  # Stroke select mode: one stroke of Lines selected
+        other = layer.current_frame().drawing
+        other.attributes.remove(other.attributes[".selection"])
+        marks = other.attributes.new(".selection", "BOOLEAN", "CURVE")
+        if layer.name == "Lines":
+            marks.data[1].value = True
+    stroke = drawing.strokes[1]
+    expected = np.array([p.position for p in stroke.points])
+    np.testing.assert_allclose(selected(obj), expected, atol=1e-6)
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert len(obj.shapedeform.handles) >= 1
+
+
 def test_in_object_mode_a_handle_goes_to_the_3d_cursor(addon):
     from test_rig_mesh import grid
 
