@@ -165,7 +165,10 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
     def execute(self, context):
         if self.handle:
             named = bpy.data.objects.get(self.handle)
-            selected = [named] if named is not None and handles.rig_of(named) is not None else []
+            owner = handles.rig_of(named) if named is not None else None
+            # A cage names its rig too: only an entry of the rig's handle list is a handle.
+            listed = owner is not None and any(item.object == named for item in owner.shapedeform.handles)
+            selected = [named] if listed else []
         else:
             selected = [o for o in context.selected_objects if handles.rig_of(o) is not None]
         if not selected:
