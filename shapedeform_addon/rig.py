@@ -58,6 +58,10 @@ class Rig:
                                             prevent_flips=settings.prevent_flips,
                                             coarse_copies=self.coarse_copies, stiffness=stiffness) \
                 if len(self.indices) else None
+        except solver.UncoveredPoints as err:
+            raise RigError(f"'{obj.name}': with these energy weights {err.count} points are in no term and nothing "
+                           f"decides where they go; give {' or '.join(map(_weight_label, err.terms))} a positive "
+                           "weight") from None
         except ValueError as err:
             raise RigError(f"'{obj.name}': {err}") from None
         overlap = rig_format.pin_items(obj, "OVERLAP")
@@ -121,6 +125,12 @@ class Rig:
         score = depth.moved_score(self.graph.points, positions, self.graph.size)
         lift = depth.heights(score, self.graph.size, self.in_front, self.overlap_reach)
         return self.plane.to_3d(positions, lift).astype(np.float32)
+
+
+def _weight_label(term):
+    """The sidebar's name of an energy term's weight ("Boundary Detail" for "laplacian")."""
+    settings = bpy.types.Object.bl_rna.properties["shapedeform"].fixed_type
+    return f"'{settings.properties['weight_' + term].name}'"
 
 
 def signature(obj):

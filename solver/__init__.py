@@ -11,7 +11,7 @@ A Blender-free library: numpy and scipy in, numpy out.
 
 Public names: :func:`build_graph`, :class:`Graph`, :class:`Deformer`, :class:`Solution`,
 :class:`Options` (every knob of a solve), :class:`CoarseCopies` (coarse levels a caller keeps
-between deformers of one graph), :func:`trace_silhouette`, :func:`bind` and :class:`Binding`.
+between deformers of one graph), :class:`UncoveredPoints` (the weights leave points undecided), :func:`trace_silhouette`, :func:`bind` and :class:`Binding`.
 
 Layout: what is minimised is in :mod:`~solver.energy` (the paper's terms), :mod:`~solver.folds`
 (the fold penalty), :mod:`~solver.area` (the area constraint) and :mod:`~solver.unknowns` (free
@@ -26,10 +26,11 @@ package never imports.
 
 from .binding import Binding, bind
 from .deformer import Deformer, Solution
+from .energy import UncoveredPoints
 from .graph import Graph, build_graph
 from .options import Options
 from .start import CoarseCopies
 from .trace import trace_silhouette
 
 __all__ = ["Graph", "build_graph", "Deformer", "Solution", "Options", "CoarseCopies", "trace_silhouette",
-           "bind", "Binding"]
+           "bind", "Binding", "UncoveredPoints"]

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .area import AreaConstraint
-from .energy import Energy
+from .energy import Energy, uncovered_points
 from .folds import FoldPenalty
 from .graph import default_spacing
 from .hessian import NewtonMatrix
@@ -149,9 +149,7 @@ class Deformer:
         self._free_block, self._free_block_transpose, self._fixed_columns = unknowns.split(self.energy.matrix)
         weight = np.asarray(abs(self._free_block_transpose).sum(axis=1)).ravel()
         if np.any(weight == 0.0):
-            raise ValueError(
-                f"with these weights {int((weight == 0).sum()) // 2} points are in no energy term and "
-                "nothing decides where they go; give 'mvc' or 'edge' a positive weight")
+            raise uncovered_points(self.energy, self.free[np.flatnonzero(weight[:len(self.free)] == 0.0)])
         if self.prevent_flips:
             # A fold is one triangle's event, whatever the density: each triangle is held open
             # as firmly as one at the reference spacing (the penalty scales with rest area, so

@@ -40,7 +40,8 @@ from typing import NamedTuple
 import numpy as np
 from scipy.sparse import coo_matrix, diags, vstack
 
-__all__ = ["DEFAULT_WEIGHTS", "DENSITY_EXPONENTS", "Energy", "LocalFit", "mean_value_weights", "similarity_rows"]
+__all__ = ["DEFAULT_WEIGHTS", "DENSITY_EXPONENTS", "Energy", "LocalFit", "UncoveredPoints", "mean_value_weights",
+           "similarity_rows", "uncovered_points"]
 
 # Read-only: a module-level dict would be state shared by every caller.
 DEFAULT_WEIGHTS = MappingProxyType({"laplacian": 1.0, "mvc": 1.0, "edge": 1.0})
@@ -178,6 +179,9 @@ class Energy:
         curve, self.curve_points = self._curve_rows(graph)
         mvc = self._mean_value_rows(graph)
         lengths, self.length_edges = self._length_rows(graph)
+        # Which points each term has rows on, whatever its weight (see UncoveredPoints).
+        self.term_points = {"laplacian": np.unique(self.curve_points), "mvc": np.unique(mvc.col),
+                            "edge": np.unique(self.length_edges)}
         scale = {key: np.sqrt(value) for key, value in self.weights.items()}
         self.spacing_ratio = self._spacing_ratio(graph, reference_spacing)
         density = {kind: float(self.spacing_ratio ** (0.5 * power)) for kind, power in DENSITY_EXPONENTS.items()}
@@ -393,6 +397,31 @@ class Energy:
         """
         residual = self.residual(np.ascontiguousarray((self.matrix @ positions).T))
         return float(np.vdot(residual, residual)), residual.T
+
+
+class UncoveredPoints(ValueError):
+    """Free points that no term with a positive weight has rows on: nothing decides where they go.
+
+    Attributes
+    ----------
+    count : int
+        How many.
+    terms : list of str
+        The weights (keys of ``Energy.weights``) that, made positive, would cover them all; when
+        no single one would, each that covers some.
+    """
+
+    def __init__(self, count, terms):
+        self.count, self.terms = count, terms
+        super().__init__(f"with these weights {count} points are in no energy term and nothing decides where "
+                         f"they go; give {' or '.join(map(repr, terms))} a positive weight")
+
+
+def uncovered_points(energy, points):
+    """:class:`UncoveredPoints` for ``points`` (k,) int, which no weighted term covers."""
+    covers = {term: np.isin(points, touched) for term, touched in energy.term_points.items()}
+    whole = [term for term, covered in covers.items() if covered.all()]
+    return UncoveredPoints(len(points), whole or [term for term, covered in covers.items() if covered.any()])
 
 
 def similarity_rows(points, triangles):

@@ -82,3 +82,16 @@ def test_a_driven_setting_reposes_when_its_driver_changes(addon, quiet):
     obj.shapedeform.weight_laplacian = 9.0  # the same value, set by hand
     bpy.context.view_layer.update()
     np.testing.assert_allclose(checks.evaluated_mesh_points(obj), driven, atol=1e-6)
+
+
+def test_weights_that_leave_points_undecided_name_the_weight_that_would_decide_them(addon):
+    """A grid's corners are in the curve term only: with Boundary Detail at 0 the status asks
+    for it by its sidebar name (it asked for the two weights already given, by internal names)."""
+    obj, _, right = rig_with_two_handles()
+    assert obj.shapedeform.graph_mode == "AUTO"
+    obj.shapedeform.weight_laplacian = 0.0
+    right.location.y += 0.1
+    bpy.context.view_layer.update()
+    assert "give 'Boundary Detail' a positive weight" in obj.shapedeform.status
+    obj.shapedeform.weight_laplacian = 1.0
+    assert obj.shapedeform.status == ""

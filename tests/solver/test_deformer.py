@@ -485,8 +485,24 @@ def test_paper_matrix_mode_never_refactorises(horse_graph, horse_drag):
 
 def test_weights_that_leave_points_free_are_refused(horse_graph, horse_drag):
     handles, targets, _ = horse_drag
-    with pytest.raises(ValueError, match="in no energy term"):
+    with pytest.raises(solver.UncoveredPoints, match="in no energy term") as refused:
         solver.Deformer(horse_graph, handles, weights={"mvc": 0.0, "edge": 0.0})
+    assert set(refused.value.terms) == {"mvc", "edge"}  # either would cover the interior
+    # Without the curve term, boundary points with no inner edge (corners) are in none: only
+    # the curve term covers them, and the message says so (it named the two weights given).
+    # A 3 x 3 grid of quads (a mesh that is its own graph): each corner has boundary edges only.
+    xs, ys = np.meshgrid(np.arange(4.0), np.arange(4.0))
+    points = np.stack([xs.ravel(), ys.ravel()], axis=1)
+    index = np.arange(16).reshape(4, 4)
+    quads = np.stack([index[:-1, :-1], index[:-1, 1:], index[1:, 1:], index[1:, :-1]], axis=-1).reshape(-1, 4)
+    triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    edges = np.unique(np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [0, 2]]]),
+                              axis=1), axis=0)
+    loop = np.array([0, 1, 2, 3, 7, 11, 15, 14, 13, 12, 8, 4])
+    grid = solver.Graph(points, edges, [loop], triangles)
+    with pytest.raises(solver.UncoveredPoints) as refused:
+        solver.Deformer(grid, np.array([5, 6]), weights={"laplacian": 0.0})
+    assert refused.value.terms == ["laplacian"] and refused.value.count >= 1
     # Tiny local-area weights are fine (the paper's Figure 3, right, without local area).
     pose = solver.Deformer(horse_graph, handles, weights={"mvc": 1e-3, "edge": 1e-3}).solve(targets)
     assert np.all(np.isfinite(pose.positions))
