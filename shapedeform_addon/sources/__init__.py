@@ -44,5 +44,8 @@ def kind_of(obj):
         return "IMAGE" if image_plane.is_image_plane(obj) else "MESH"
     if obj.type in {"CURVE", "GREASEPENCIL"}:
         return obj.type
+    if obj.type == "FONT":
+        raise RigError(f"'{obj.name}' is a text object: convert it to a curve first (Object > Convert > Curve), "
+                       "then bind the curve")
     raise RigError(f"'{obj.name}' is {with_article(type_name(obj))} object: Shape Deform rigs meshes, curves, "
                    "grease pencil and image planes")
