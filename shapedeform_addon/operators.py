@@ -108,11 +108,14 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
         if was_edit:
             # Leaving Edit Mode writes the selection into the data.
             bpy.ops.object.mode_set(mode="OBJECT")
-        if self.properties.is_property_set("location"):
-            locations = np.array([self.location], dtype=np.float64)
-        elif not was_edit:
+        if self.properties.is_property_set("location") or not was_edit:
             # As Blender adds things in Object Mode: at the 3D cursor (projected onto the plane).
-            locations = np.array([context.scene.cursor.location], dtype=np.float64)
+            where = self.location if self.properties.is_property_set("location") else context.scene.cursor.location
+            locations = np.array([where], dtype=np.float64)
+            if rig_format.is_follower(active):
+                # On a duplicate that follows the rig: the same place on the owner.
+                onto_owner = np.array(obj.matrix_world) @ np.linalg.inv(np.array(active.matrix_world))
+                locations = transform_points(onto_owner, locations)
         else:
             local = sources.module_for(active).selected(active)
             if len(local) == 0:

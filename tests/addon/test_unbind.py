@@ -203,6 +203,28 @@ def test_a_handle_added_in_edit_mode_on_a_duplicate_holds_the_selected_point(add
     np.testing.assert_allclose(checks.evaluated_mesh_points(original), checks.evaluated_mesh_points(copy), atol=1e-6)
 
 
+def test_a_handle_added_in_object_mode_on_a_duplicate_holds_the_point_under_the_cursor(addon):
+    """Object Mode on a duplicate that follows the rig, the 3D cursor on it: the handle holds
+    the point of the duplicate under the cursor (it was placed in the owner's space, off the
+    shape, holding whatever part of the owner was nearest)."""
+    original, _, _ = rig_with_two_handles()
+    rest = checks.mesh_points(original).copy()
+    copy = _duplicate(original, False)
+    copy.location.x += 4.0
+    bpy.context.view_layer.update()
+    chosen = int(np.argmin(np.linalg.norm(rest[:, :2] - [0.0, -0.5], axis=1)))  # the bottom edge's middle
+    bpy.context.scene.cursor.location = checks.world(copy, rest[chosen])
+    bpy.context.view_layer.objects.active = copy
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    handle = original.shapedeform.handles[-1].object
+    np.testing.assert_allclose(handle.matrix_world.translation, checks.world(original, rest[chosen]), atol=1e-5)
+    before = checks.evaluated_mesh_points(copy).copy()
+    handle.location.y -= 0.5
+    bpy.context.view_layer.update()
+    moved = np.linalg.norm(checks.evaluated_mesh_points(copy) - before, axis=1)
+    assert moved[chosen] == pytest.approx(0.5, abs=1e-4)
+
+
 def _assert_still_follows(original, handle, rest):
     """The original's rig is live: moving its right handle up moves the grid's right tip."""
     handle.location.y += 0.4
