@@ -8,15 +8,17 @@ barycentric map as their positions, so renders, modifiers after the rig and expo
 The order, per graph point, is a score:
 
 - automatic: ``AUTO_WEIGHT`` times how far the point moved from its rest place, as a fraction
-  of the shape's size (less the least any point moved). What was dragged across the shape (the
-  arm) moved further than what it covers (the body), the score varies smoothly over the shape,
-  and a shape moved as a whole stays flat;
+  of the shape's size (less the least any point moved), eased so that it stays below 1 (a
+  hyperbolic tangent: within 8% of linear up to a drag of the shape's size). What was dragged
+  across the shape (the arm) moved further than what it covers (the body), the score varies
+  smoothly over the shape, a shape moved as a whole stays flat, and however far a handle goes
+  the lift stays within a pin's (a handle keyed a million sizes away lifted the shape 10,000
+  sizes off its plane);
 - plus overlap pins: each adds its ``in_front`` amount (positive in front, negative behind)
   times its weight: 1 through the first ``1 - EDGE`` of its ``extent``, falling smoothly to 0 at
   the extent, measured through the rest shape along the graph's edges, so a pin on a hand does
-  not reach the body across the gap between them. Where extents meet, the amounts add up. With
-  ``AUTO_WEIGHT`` 0.5, a pin's unit amount outweighs the automatic order of any drag shorter
-  than twice the shape's size.
+  not reach the body across the gap between them. Where extents meet, the amounts add up. A
+  pin's unit amount outweighs the automatic order of any drag.
 
 Heights are ``HEIGHT_PER_SCORE`` of the size per unit of score: a layer a tenth of the size
 further moved is 1e-3 of the size in front, what depth buffers need to separate the layers
@@ -40,7 +42,7 @@ EDGE = 0.3
 
 def moved_score(rest, posed, size):
     """The automatic order: distance each point moved over the shape's size, less the least
-    any point moved (a shape that only moved as a whole stays in its plane).
+    any point moved (a shape that only moved as a whole stays in its plane), eased below 1.
 
     Parameters
     ----------
@@ -54,7 +56,7 @@ def moved_score(rest, posed, size):
     (n,) float64 ndarray
     """
     moved = np.linalg.norm(np.asarray(posed, dtype=np.float64) - np.asarray(rest, dtype=np.float64), axis=1)
-    return AUTO_WEIGHT * (moved - moved.min()) / size if len(moved) else moved
+    return np.tanh(AUTO_WEIGHT * (moved - moved.min()) / size) if len(moved) else moved
 
 
 def pin_weights(points, edges, pins, extents):

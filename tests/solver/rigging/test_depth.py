@@ -18,7 +18,17 @@ def test_what_moved_further_is_higher_and_heights_scale_with_size():
     for size in (1.0, 10.0):
         h = depth.heights(depth.moved_score(rest, posed, size), size)
         assert h[0] == 0.0 and h[0] < h[1] < h[2]
-        np.testing.assert_allclose(h, depth.HEIGHT_PER_SCORE * depth.AUTO_WEIGHT * np.array([0.0, 0.5, 1.5]))
+        np.testing.assert_allclose(
+            h, depth.HEIGHT_PER_SCORE * np.tanh(depth.AUTO_WEIGHT * np.array([0.0, 0.5, 1.5]) * 1.0 / size) * size)
+
+
+def test_however_far_a_handle_goes_the_automatic_lift_stays_below_a_pins():
+    """A handle keyed a million sizes away lifted its part 10,000 sizes off the plane; the lift
+    now stays below what one overlap pin at 1 gives, and still orders what moved further."""
+    rest = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    posed = rest + [[0.0, 0.0], [0.0, 3.0], [0.0, 1e6]]
+    h = depth.heights(depth.moved_score(rest, posed, 2.0), 2.0)
+    assert 0.0 == h[0] < h[1] < h[2] <= depth.HEIGHT_PER_SCORE * 2.0
 
 
 def two_strips():
