@@ -120,6 +120,9 @@ def unbind(obj):
         obj.modifiers.remove(modifier)
     lost = []
     if rig_format.is_follower(obj):
+        owner = settings.cage.shapedeform.rig
+        if settings.cage != owner.shapedeform.cage:  # its own (handles.follow), sharing the rig's mesh
+            bpy.data.objects.remove(settings.cage)
         settings.handles.clear()
         settings.handle_collection = None
         settings.original_data = None  # the quad is the owner's to give back
@@ -133,6 +136,8 @@ def unbind(obj):
         lost = source.unbind(obj)  # while the cage is there: it tells what transform was applied
         cage = settings.cage
         mesh = cage.data
+        for follower_cage in handles.follower_cages(obj):  # duplicates that follow it stop
+            bpy.data.objects.remove(follower_cage)
         bpy.data.objects.remove(cage)
         if mesh.users == 0:
             bpy.data.meshes.remove(mesh)

@@ -161,14 +161,8 @@ def adopt_duplicated(obj):
     if not own:
         return False
     shared = settings.cage
-    cage = shared.copy()
-    cage.data = shared.data.copy()
+    cage = _cage_for(obj, shared, shared.data.copy())
     cage.shapedeform.rig = obj
-    if shared.parent is not None:
-        cage.parent = obj
-    for constraint in cage.constraints:  # a curve with path animation: the cage copies its transform
-        if getattr(constraint, "target", None) is not None:
-            constraint.target = obj
     settings.handle_collection = None  # the original's: this rig gets its own
     home = collection(obj)
     home.objects.link(cage)
@@ -187,12 +181,55 @@ def adopt_duplicated(obj):
     return True
 
 
+def _cage_for(obj, shared, mesh):
+    """A copy of the cage object ``shared`` with ``mesh``, placed relative to ``obj`` as
+    ``shared`` is to its owner (parented, or with a curve's path animation following it)."""
+    cage = shared.copy()
+    cage.data = mesh
+    if shared.parent is not None:
+        cage.parent = obj  # the parent inverse and own transform are copied with it
+    for constraint in cage.constraints:  # a curve with path animation: the cage copies its transform
+        if getattr(constraint, "target", None) is not None:
+            constraint.target = obj
+    return cage
+
+
+def follow(obj):
+    """Have a duplicate that follows a rig read it through a cage object of its own; True when
+    something changed.
+
+    The follower's cage shares the rig's cage mesh, so it shows every pose and bake, and is its
+    child as the rig's cage is the owner's: the modifier maps the cage into the follower's space
+    with the follower's own matrices, so Apply Transform on either object (which keeps a
+    child's world place by changing the child's transform) keeps both where they are. Through
+    the owner's cage, a duplicate read the rig in the owner's data space, and jumped when either
+    data was transformed. A follower made by an older version gets its cage here too.
+    """
+    cage = obj.shapedeform.cage
+    placed = cage.parent == obj or any(getattr(c, "target", None) == obj for c in cage.constraints)
+    if not placed:  # the owner's or another follower's (just duplicated, or an older file's)
+        cage = _cage_for(obj, cage, cage.data)
+        cage.name = f"{obj.name} Cage"
+        (obj.users_collection or (bpy.context.scene.collection,))[0].objects.link(cage)
+        obj.shapedeform.cage = cage
+    return rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage, nodes.OWNER_INPUT: obj})
+
+
+def follower_cages(obj):
+    """The cage objects of duplicates that follow ``obj``'s rig (:func:`follow`)."""
+    shared = obj.shapedeform.cage
+    if shared is None:
+        return []
+    return [o for o in bpy.data.objects if o != shared and o.type == "MESH" and o.data == shared.data
+            and o.shapedeform.rig == obj.original]
+
+
 def settle_duplicate(obj):
     """A duplicate of a rig's owner, made or found: a rig of its own where it was duplicated
-    with handles of the rig (:func:`adopt_duplicated`), else its modifier pointed back at the
-    rig it follows (:func:`~.rig_format.repair_owner`)."""
-    if rig_format.is_follower(obj) and not adopt_duplicated(obj):
-        rig_format.repair_owner(obj)
+    with handles of the rig (:func:`adopt_duplicated`), else a follower of the rig
+    (:func:`follow`). Library data is left as the library has it."""
+    if obj.library is None and rig_format.is_follower(obj) and not adopt_duplicated(obj):
+        follow(obj)
 
 
 def owns(obj, empty):

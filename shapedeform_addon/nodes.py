@@ -16,8 +16,9 @@ Rig space: the cage's points are in the space the rig was bound in (the bound ob
 space at bind time). The cage object is parented to the bound object, so Apply Transform on it
 keeps the cage's world place by changing the cage's own transform: the group maps the cage into
 the deformed object's space with ``inverse(owner) @ cage``, both world matrices, where the
-owner is the bound object. A duplicate's modifier keeps both pointers, so it follows the same
-rig in its own space.
+owner is the bound object. A duplicate that follows the rig has a cage object of its own,
+sharing the rig's cage mesh and parented to it as the rig's cage is to the owner, and is its own
+"owner" here (``handles.follow``): Apply Transform on either object keeps both in place.
 
 Finding each point's triangle is most of the cost (a nearest-triangle search per point takes
 about 85% of an evaluation of a 50,000-vertex mesh). Points whose projection lies inside the

@@ -157,8 +157,12 @@ def write_pose(cage, points):
         return False  # library data: nothing here can change it
     if mesh.library is not None:
         # A library override of a rigged character: its cage's mesh is the library's, which
-        # nothing here can change. The cage takes a local copy, its own from now on.
-        mesh = cage.data = mesh.copy()
+        # nothing here can change. The cage takes a local copy, its own from now on, and so do
+        # the cages of duplicates following the rig, which share its mesh.
+        shared, mesh = mesh, mesh.copy()
+        for other in bpy.data.objects:
+            if other.data == shared and other.shapedeform.rig == cage.shapedeform.rig and other.library is None:
+                other.data = mesh
     if mesh.shape_keys is not None:
         return False
     position = mesh.attributes["position"].data
@@ -233,18 +237,6 @@ def modifiers_of(obj):
     """The object's deformer modifiers (normally one)."""
     return [m for m in obj.modifiers
             if m.type == "NODES" and m.node_group is not None and nodes.VERSION_KEY in m.node_group]
-
-
-def repair_owner(obj):
-    """Point a duplicate's modifier back at its rig's owner; True when something changed.
-
-    Duplicating an object makes its copy's pointers to the original point at the copy, the
-    modifier's Owner among them; the cage's space is the owner's, so a copy would then read
-    the cage in the wrong place.
-    """
-    cage = obj.shapedeform.cage
-    owner = cage.shapedeform.rig if cage is not None else None
-    return owner is not None and point_inputs(obj, {nodes.OWNER_INPUT: owner})
 
 
 def point_inputs(obj, values):

@@ -693,8 +693,10 @@ class Machine:
         self.model.rest = {key: points.tobytes() for key, points in current.items()}
 
     def check_wiring(self):
-        """Every bound shape's modifier reads its rig's cage in its owner's space; every cage
-        and handle in the scene belongs to a bound rig (nothing left behind)."""
+        """Every bound shape's modifier reads its cage (its rig's, or for a duplicate that
+        follows a rig a copy of that cage's object sharing its mesh, placed on the duplicate as
+        the rig's cage is on its owner) in its own space; every cage and handle in the scene
+        belongs to a bound rig (nothing left behind)."""
         addon = self.addon
         for obj in shapes(self.scene):
             settings = obj.shapedeform
@@ -710,10 +712,13 @@ class Machine:
             ids = addon.nodes.input_identifiers(modifiers[0].node_group)
             cage = addon.compat.modifier_input(modifiers[0], ids[addon.nodes.CAGE_INPUT])
             owner = addon.compat.modifier_input(modifiers[0], ids[addon.nodes.OWNER_INPUT])
-            if cage != settings.cage or owner != settings.cage.shapedeform.rig:
+            if cage != settings.cage or owner != obj:
                 raise StepFailed(f"'{obj.name}': its modifier reads cage {getattr(cage, 'name', None)!r} "
-                                 f"of {getattr(owner, 'name', None)!r}, its rig is "
-                                 f"{settings.cage.name!r} of {settings.cage.shapedeform.rig.name!r}")
+                                 f"in the space of {getattr(owner, 'name', None)!r}, its cage is "
+                                 f"{settings.cage.name!r} of the rig of {settings.cage.shapedeform.rig.name!r}")
+            rig_cage = settings.cage.shapedeform.rig.shapedeform.cage
+            if cage != rig_cage and (cage.data != rig_cage.data or cage.parent not in (None, obj)):
+                raise StepFailed(f"'{obj.name}': its cage {cage.name!r} is not its rig's cage's mesh on it")
         for obj in self.scene.objects:
             rig = obj.shapedeform.rig
             if rig is None:
@@ -722,8 +727,9 @@ class Machine:
                 raise StepFailed(f"'{obj.name}' is left over from the rig of '{rig.name}', which is gone")
             if obj.type == "EMPTY" and obj not in [item.object for item in rig.shapedeform.handles]:
                 raise StepFailed(f"handle '{obj.name}' is not in the handle list of '{rig.name}'")
-            if obj.type == "MESH" and rig.shapedeform.cage != obj:
-                raise StepFailed(f"'{obj.name}' is a cage '{rig.name}' does not use")
+            followers = [o for o in self.scene.objects if o.shapedeform.cage == obj and o != rig]
+            if obj.type == "MESH" and rig.shapedeform.cage != obj and not followers:
+                raise StepFailed(f"'{obj.name}' is a cage neither '{rig.name}' nor a duplicate following it uses")
 
     def check_fresh_solve(self, shown):
         """Forget every rig and pose it again: the objects must show what they showed.

@@ -225,6 +225,39 @@ def test_a_handle_added_in_object_mode_on_a_duplicate_holds_the_point_under_the_
     assert moved[chosen] == pytest.approx(0.5, abs=1e-4)
 
 
+def _world_points(obj):
+    bpy.context.view_layer.update()
+    matrix = np.array(obj.matrix_world)
+    return checks.evaluated_mesh_points(obj) @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+@pytest.mark.parametrize("applied, transform", [("copy", "scale"), ("original", "scale"), ("copy", "location"),
+                                                ("copy", "rotation")])
+def test_apply_transform_on_a_duplicate_or_its_original_keeps_both_where_they_are(addon, applied, transform):
+    """Apply Location/Rotation/Scale keeps a deformed object where it is; a Shift+D duplicate
+    that follows the rig too, whichever of the two it is applied to (the duplicate jumped by up
+    to 0.94 and its bend grew: both read the rig through the original's data space)."""
+    original, _, right = rig_with_two_handles()
+    right.location.y += 0.6
+    bpy.context.view_layer.update()
+    copy = _duplicate(original, False)
+    copy.location.x += 4.0
+    target = copy if applied == "copy" else original
+    setattr(target, "scale" if transform == "scale" else "rotation_euler" if transform == "rotation" else "location",
+            (2.0, 1.5, 1.0) if transform == "scale" else (0.0, 0.0, 0.4) if transform == "rotation"
+            else tuple(target.location))
+    before = {o.name: _world_points(o) for o in (original, copy)}
+    checks.select_only(target)
+    assert bpy.ops.object.transform_apply(location=transform == "location", rotation=transform == "rotation",
+                                          scale=transform == "scale") == {"FINISHED"}
+    for o in (original, copy):
+        np.testing.assert_allclose(_world_points(o), before[o.name], atol=1e-5, err_msg=o.name)
+    right.location.y -= 0.3  # and both still follow the rig, each in its own place
+    bpy.context.view_layer.update()
+    moved = {o.name: np.abs(_world_points(o) - before[o.name]).max() for o in (original, copy)}
+    assert moved[original.name] > 0.1 and moved[copy.name] > 0.1
+
+
 def _assert_still_follows(original, handle, rest):
     """The original's rig is live: moving its right handle up moves the grid's right tip."""
     handle.location.y += 0.4
