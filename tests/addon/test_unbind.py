@@ -258,6 +258,32 @@ def test_apply_transform_on_a_duplicate_or_its_original_keeps_both_where_they_ar
     assert moved[original.name] > 0.1 and moved[copy.name] > 0.1
 
 
+def test_a_duplicate_from_an_older_version_gets_its_own_cage_when_the_file_opens(addon):
+    """Older versions had a follower read the original's cage in the original's space: on
+    opening (the same pass as enabling the extension), it gets a cage of its own and shows the
+    same pose."""
+    shapedeform = addon.shapedeform_addon
+    original, _, right = rig_with_two_handles()
+    right.location.y += 0.4
+    copy = _duplicate(original, False)
+    copy.location.x += 4.0
+    shown = _world_points(copy)
+    own = copy.shapedeform.cage
+    assert own != original.shapedeform.cage and own.parent == copy and own.data == original.shapedeform.cage.data
+    # As an older version left it:
+    copy.shapedeform.cage = original.shapedeform.cage
+    shapedeform.rig_format.point_inputs(copy, {shapedeform.nodes.CAGE_INPUT: original.shapedeform.cage,
+                                               shapedeform.nodes.OWNER_INPUT: original})
+    bpy.data.objects.remove(own)
+    shapedeform.handlers.sync_scene()
+    assert copy.shapedeform.cage not in (None, original.shapedeform.cage)
+    np.testing.assert_allclose(_world_points(copy), shown, atol=1e-5)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"} and copy.shapedeform.cage is None  # the active copy
+    bpy.context.view_layer.objects.active = original
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert not any(o.shapedeform.rig == original for o in bpy.data.objects)
+
+
 def _assert_still_follows(original, handle, rest):
     """The original's rig is live: moving its right handle up moves the grid's right tip."""
     handle.location.y += 0.4
