@@ -70,7 +70,7 @@ def bind(obj):
     # with that rig's cage before this one's.
     for modifier in copied:
         obj.modifiers.remove(modifier)
-    rig_format.add_modifier(obj, settings.cage, obj, prepared.modifier_inputs)
+    rig_format.add_modifier(obj, settings.cage, prepared.modifier_inputs)
     settings.kind = kind
     settings.is_bound = True
     settings.status = ""

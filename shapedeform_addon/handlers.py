@@ -13,7 +13,7 @@ from contextlib import contextmanager
 import bpy
 from bpy.app.handlers import persistent
 
-from . import handles, rig, rig_format
+from . import handles, nodes, rig, rig_format
 
 # Writing geometry makes Blender evaluate again and call us back: ignore those calls.
 _busy = False
@@ -95,8 +95,8 @@ def refine():
 def on_depsgraph_update(scene, depsgraph):
     """A handle moved (or a rigged object's handles did): solve and write at once.
 
-    A duplicate of a rig's owner has its modifier pointed back at the owner here (duplicating
-    points it at the copy), or, made together with handles of the rig, a rig of its own.
+    A duplicate of a rig's owner gets its follower's cage here, or, made together with handles
+    of the rig, a rig of its own.
     """
     if _busy:
         return
@@ -152,7 +152,9 @@ def on_load(*_args):
 
 
 def sync_scene():
-    """Repair duplicates and pose the current scene's rigs (a file opened, the extension enabled)."""
+    """Bring an older version's node group up to date, repair duplicates and pose the current
+    scene's rigs (a file opened, the extension enabled)."""
+    nodes.upgrade()
     for obj in bpy.data.objects:
         handles.settle_duplicate(obj)
     scene = bpy.context.scene

@@ -177,7 +177,7 @@ def adopt_duplicated(obj):
             settings.handles.remove(i)
     settings.cage = cage
     settings.active_handle = min(settings.active_handle, len(settings.handles) - 1)
-    rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage, nodes.OWNER_INPUT: obj, nodes.HANDLES_INPUT: home})
+    rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage, nodes.HANDLES_INPUT: home})
     return True
 
 
@@ -210,9 +210,10 @@ def follow(obj):
     if not placed:  # the owner's or another follower's (just duplicated, or an older file's)
         cage = _cage_for(obj, cage, cage.data)
         cage.name = f"{obj.name} Cage"
-        (obj.users_collection or (bpy.context.scene.collection,))[0].objects.link(cage)
+        # In no collection: Blender evaluates it for the modifier that reads it, and it goes
+        # when the duplicate does (nothing else uses it, so it is not saved).
         obj.shapedeform.cage = cage
-    return rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage, nodes.OWNER_INPUT: obj})
+    return rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage})
 
 
 def follower_cages(obj):

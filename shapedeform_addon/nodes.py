@@ -15,10 +15,11 @@ point, so here a point in a notch between two parts follows the nearer one.)
 Rig space: the cage's points are in the space the rig was bound in (the bound object's local
 space at bind time). The cage object is parented to the bound object, so Apply Transform on it
 keeps the cage's world place by changing the cage's own transform: the group maps the cage into
-the deformed object's space with ``inverse(owner) @ cage``, both world matrices, where the
-owner is the bound object. A duplicate that follows the rig has a cage object of its own,
-sharing the rig's cage mesh and parented to it as the rig's cage is to the owner, and is its own
-"owner" here (``handles.follow``): Apply Transform on either object keeps both in place.
+the deformed object's space with ``inverse(object) @ cage``, both world matrices (the object's
+from Self Object). A duplicate that follows the rig has a cage object of its own, sharing the
+rig's cage mesh and parented to it as the rig's cage is to the owner (``handles.follow``):
+Apply Transform on either object keeps both in place, and nothing but its own modifier points
+at it (a modifier naming its own object kept a deleted duplicate alive in the file).
 
 Finding each point's triangle is most of the cost (a nearest-triangle search per point takes
 about 85% of an evaluation of a 50,000-vertex mesh). Points whose projection lies inside the
@@ -46,7 +47,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 9
+VERSION = 10
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -56,13 +57,13 @@ SCAFFOLD = "sd_unsorted"  # only inside the group: layers that carry materials t
 # their data each have their own; everything is deformed when it is missing or the name empty.
 # A modifier made by version 1 of the group, which had no such input, reads ``RIGGED``.
 RIGGED = "sd_rigged"
-CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT = "Cage", "Owner", "Rigged Layers"
+CAGE_INPUT, RIGGED_INPUT = "Cage", "Rigged Layers"
 REFINE_INPUT, ORDER_INPUT = "Refine", "Stroke Order"
 # The rig's handle collection. Nothing in the group reads it: a modifier's ID inputs are its
 # object's dependencies, so Blender evaluates the handles' animation wherever the object is
 # evaluated, even where their collection is hidden, disabled in renders or excluded.
 HANDLES_INPUT = "Handles"
-KEPT_INPUTS = (CAGE_INPUT, OWNER_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT, HANDLES_INPUT)
+KEPT_INPUTS = (CAGE_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT, HANDLES_INPUT)
 
 
 def node_group():
@@ -73,23 +74,34 @@ def node_group():
     if group is None or group.bl_idname != "GeometryNodeTree":
         group = bpy.data.node_groups.new(GROUP_NAME, "GeometryNodeTree")
     # Rebuilding gives the inputs new identifiers: carry each modifier's values over by name.
-    users = [m for o in bpy.data.objects for m in o.modifiers if m.type == "NODES" and m.node_group == group]
+    users = [(o, m) for o in bpy.data.objects for m in o.modifiers if m.type == "NODES" and m.node_group == group]
     old = input_identifiers(group)
-    kept = [(m, {name: compat.modifier_input(m, key) for name, key in old.items() if name in KEPT_INPUTS})
-            for m in users]  # not the geometry
+    kept = [(o, m, {name: compat.modifier_input(m, key) for name, key in old.items() if name in KEPT_INPUTS})
+            for o, m in users]  # not the geometry (nor version 9's Owner: Self Object stands for it)
     _build(group)
     group[VERSION_KEY] = VERSION
     new = input_identifiers(group)
-    for modifier, values in kept:
+    for obj, modifier, values in kept:
         for name, value in values.items():
             if name in new and value is not None:
                 compat.set_modifier_input(modifier, new[name], value)
         if RIGGED_INPUT not in old:
             compat.set_modifier_input(modifier, new[RIGGED_INPUT], RIGGED)
-        owner = values.get(OWNER_INPUT)
-        if HANDLES_INPUT not in old and owner is not None and owner.shapedeform.handle_collection is not None:
+        cage = values.get(CAGE_INPUT)
+        owner = cage.shapedeform.rig if cage is not None and cage.shapedeform.rig is not None else obj
+        if HANDLES_INPUT not in old and owner.shapedeform.handle_collection is not None:
             compat.set_modifier_input(modifier, new[HANDLES_INPUT], owner.shapedeform.handle_collection)
     return group
+
+
+def upgrade():
+    """Rebuild the open file's group if an older version made it (a file opened, the extension
+    enabled): the rest of the extension reads the current group's inputs (a duplicate's own
+    cage means nothing to version 9, which placed every cage in its owner's space)."""
+    group = bpy.data.node_groups.get(GROUP_NAME)
+    if group is not None and group.library is None and group.bl_idname == "GeometryNodeTree" \
+            and group.get(VERSION_KEY) != VERSION:
+        node_group()
 
 
 def input_identifiers(group):
@@ -141,7 +153,7 @@ def _build(group):
     b = _Builder(group)
     given = b.node("NodeGroupInput")
     geometry = b.node("GeometryNodeSubdivideMesh", {"Mesh": given.outputs[0], "Level": given.outputs[REFINE_INPUT]}).outputs[0]
-    cage = _Cage(b, given.outputs[CAGE_INPUT], given.outputs[OWNER_INPUT])
+    cage = _Cage(b, given.outputs[CAGE_INPUT])
     selection = _rigged_selection(b, given.outputs[RIGGED_INPUT])
     curves = _map_bezier_handles(b, cage, geometry, selection)
     moved = _map_points(b, cage, curves, selection)
@@ -160,7 +172,6 @@ def _interface(group):
     group.interface.clear()
     group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
     group.interface.new_socket(CAGE_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
-    group.interface.new_socket(OWNER_INPUT, in_out="INPUT", socket_type="NodeSocketObject")
     group.interface.new_socket(RIGGED_INPUT, in_out="INPUT", socket_type="NodeSocketString")
     refine = group.interface.new_socket(REFINE_INPUT, in_out="INPUT", socket_type="NodeSocketInt")
     refine.description = ("Subdivide a mesh's faces this many times before deforming it, so long thin "
@@ -190,10 +201,11 @@ class _Cage:
     lowest corner there (the UV square's origin).
     """
 
-    def __init__(self, b, cage_object, owner_object):
+    def __init__(self, b, cage_object):
         self.b = b
         cage = b.node("GeometryNodeObjectInfo", {"Object": cage_object}, transform_space="ORIGINAL")
-        owner = b.node("GeometryNodeObjectInfo", {"Object": owner_object}, transform_space="ORIGINAL")
+        deformed = b.node("GeometryNodeSelfObject").outputs[0]
+        owner = b.node("GeometryNodeObjectInfo", {"Object": deformed}, transform_space="ORIGINAL")
         inverse_owner = b.node("FunctionNodeInvertMatrix", [owner.outputs["Transform"]]).outputs[0]
         to_object = b.node("FunctionNodeMatrixMultiply", [inverse_owner, cage.outputs["Transform"]]).outputs[0]
         self.geometry = cage.outputs["Geometry"]

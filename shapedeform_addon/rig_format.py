@@ -218,7 +218,7 @@ def rest_of(cage):
     return _points(cage.data, cage.data.attributes[nodes.REST].data)
 
 
-def add_modifier(obj, cage, owner, inputs=None):
+def add_modifier(obj, cage, inputs=None):
     """Give ``obj`` the deformer modifier driven by ``cage`` (at the end of its stack), its
     other inputs at the node group's defaults but for ``inputs`` ({input name: value})."""
     group = nodes.node_group()
@@ -226,8 +226,8 @@ def add_modifier(obj, cage, owner, inputs=None):
     modifier.node_group = group
     modifier.show_in_editmode = True
     ids = nodes.input_identifiers(group)
-    values = {nodes.CAGE_INPUT: cage, nodes.OWNER_INPUT: owner, nodes.HANDLES_INPUT: owner.shapedeform.handle_collection,
-              nodes.RIGGED_INPUT: owner.shapedeform.get(RIGGED_KEY, ""), **(inputs or {})}
+    values = {nodes.CAGE_INPUT: cage, nodes.HANDLES_INPUT: obj.shapedeform.handle_collection,
+              nodes.RIGGED_INPUT: obj.shapedeform.get(RIGGED_KEY, ""), **(inputs or {})}
     for name, value in values.items():
         compat.set_modifier_input(modifier, ids[name], value)
     return modifier

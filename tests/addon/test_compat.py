@@ -53,8 +53,7 @@ def test_modifier_inputs_are_set_and_read_back_and_reach_the_nodes(addon):
     modifier.node_group = group
     ids = shapedeform.nodes.input_identifiers(group)
     assert shapedeform.compat.modifier_input(modifier, ids["Cage"]) is None
-    for name in ("Cage", "Owner"):
-        shapedeform.compat.set_modifier_input(modifier, ids[name], cage if name == "Cage" else obj)
+    shapedeform.compat.set_modifier_input(modifier, ids["Cage"], cage)
     assert shapedeform.compat.modifier_input(modifier, ids["Cage"]) == cage
     # What the sidebar draws with layout.prop resolves to the same input.
     struct, prop = shapedeform.compat.modifier_input_property(modifier, ids["Refine"])

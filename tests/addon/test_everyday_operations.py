@@ -745,6 +745,13 @@ def test_a_file_with_an_older_node_group_keeps_its_rigs_when_the_group_is_rebuil
     rig.move(0.1)
     assert old.shapedeform.status == ""
     assert np.abs(layer_points(old)["Lines"] - posed["Lines"]).max() > 0.05
+    # Opening such a file (or enabling the extension in it) rebuilds the group too.
+    group[nodes.VERSION_KEY] = nodes.VERSION - 1
+    shown = layer_points(old)
+    addon.shapedeform_addon.handlers.sync_scene()
+    assert group[nodes.VERSION_KEY] == nodes.VERSION
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(layer_points(old)["Lines"], shown["Lines"], atol=1e-6)
 
 
 # -- updates that change the scene as a handle moves -------------------------------------------

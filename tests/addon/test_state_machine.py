@@ -711,11 +711,9 @@ class Machine:
                 raise StepFailed(f"'{obj.name}' has {len(modifiers)} Shape Deform modifiers")
             ids = addon.nodes.input_identifiers(modifiers[0].node_group)
             cage = addon.compat.modifier_input(modifiers[0], ids[addon.nodes.CAGE_INPUT])
-            owner = addon.compat.modifier_input(modifiers[0], ids[addon.nodes.OWNER_INPUT])
-            if cage != settings.cage or owner != obj:
-                raise StepFailed(f"'{obj.name}': its modifier reads cage {getattr(cage, 'name', None)!r} "
-                                 f"in the space of {getattr(owner, 'name', None)!r}, its cage is "
-                                 f"{settings.cage.name!r} of the rig of {settings.cage.shapedeform.rig.name!r}")
+            if cage != settings.cage:
+                raise StepFailed(f"'{obj.name}': its modifier reads cage {getattr(cage, 'name', None)!r}, its "
+                                 f"cage is {settings.cage.name!r} of the rig of {settings.cage.shapedeform.rig.name!r}")
             rig_cage = settings.cage.shapedeform.rig.shapedeform.cage
             if cage != rig_cage and (cage.data != rig_cage.data or cage.parent not in (None, obj)):
                 raise StepFailed(f"'{obj.name}': its cage {cage.name!r} is not its rig's cage's mesh on it")

@@ -272,8 +272,7 @@ def test_a_duplicate_from_an_older_version_gets_its_own_cage_when_the_file_opens
     assert own != original.shapedeform.cage and own.parent == copy and own.data == original.shapedeform.cage.data
     # As an older version left it:
     copy.shapedeform.cage = original.shapedeform.cage
-    shapedeform.rig_format.point_inputs(copy, {shapedeform.nodes.CAGE_INPUT: original.shapedeform.cage,
-                                               shapedeform.nodes.OWNER_INPUT: original})
+    shapedeform.rig_format.point_inputs(copy, {shapedeform.nodes.CAGE_INPUT: original.shapedeform.cage})
     bpy.data.objects.remove(own)
     shapedeform.handlers.sync_scene()
     assert copy.shapedeform.cage not in (None, original.shapedeform.cage)
@@ -282,6 +281,22 @@ def test_a_duplicate_from_an_older_version_gets_its_own_cage_when_the_file_opens
     bpy.context.view_layer.objects.active = original
     assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
     assert not any(o.shapedeform.rig == original for o in bpy.data.objects)
+
+
+def test_deleting_a_duplicate_that_follows_a_rig_leaves_nothing_behind(addon, tmp_path):
+    """Its cage is in no collection and used by it alone: deleted with it, it is not saved."""
+    original, _, _ = rig_with_two_handles()
+    copy = _duplicate(original, False)
+    bpy.context.view_layer.update()
+    cage_name = copy.shapedeform.cage.name
+    assert not copy.shapedeform.cage.users_collection
+    checks.select_only(copy)
+    assert bpy.ops.object.delete() == {"FINISHED"}
+    path = str(tmp_path / "deleted.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert cage_name not in bpy.data.objects
+    assert [o.name for o in bpy.data.objects if o.type == "MESH" and o.shapedeform.rig is not None] == ["Grid Cage"]
 
 
 def _assert_still_follows(original, handle, rest):
