@@ -128,6 +128,20 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     return empty
 
 
+def add_all(obj, locations, kind="POSITION", on_rest=False):
+    """:func:`add` at each of ``locations`` (k, 3), all or none: the Empties added, or RigError
+    with none left behind."""
+    added = []
+    try:
+        for location in locations:
+            added.append(add(obj, location, on_rest=on_rest, kind=kind))
+    except RigError:
+        if added:
+            remove(obj, set(added))
+        raise
+    return added
+
+
 def _add_pin(obj, rig, point, kind):
     empty = bpy.data.objects.new(f"{obj.name} {kind.title()} Pin", None)
     empty.empty_display_type = "SPHERE" if kind == "OVERLAP" else "CUBE"

@@ -3,7 +3,8 @@
 
 Every operator refuses bad input with a message in the status bar and changes nothing; where the
 context alone rules it out, its poll says why (the interface greys it out with that tooltip, and
-a script's call raises RuntimeError with it). Each leaves the object in the mode it found it in.
+a script's call raises RuntimeError with it). Each leaves the object in the mode it found it in
+(where Blender lets it: a hidden object cannot enter Edit Mode again).
 """
 
 from contextlib import contextmanager
@@ -104,50 +105,41 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
         if obj is None:
             self.report({"ERROR"}, "Bind the object before adding handles")
             return {"CANCELLED"}
-        was_edit = active.mode == "EDIT"
-        if was_edit:
-            # Leaving Edit Mode writes the selection into the data.
-            bpy.ops.object.mode_set(mode="OBJECT")
-        if self.properties.is_property_set("location") or not was_edit:
-            # As Blender adds things in Object Mode: at the 3D cursor (projected onto the plane).
-            where = self.location if self.properties.is_property_set("location") else context.scene.cursor.location
-            locations = np.array([where], dtype=np.float64)
-            if rig_format.is_follower(active):
-                # On a duplicate that follows the rig: the same place on the owner.
-                onto_owner = np.array(obj.matrix_world) @ np.linalg.inv(np.array(active.matrix_world))
-                locations = transform_points(onto_owner, locations)
-        else:
-            local = sources.module_for(active).selected(active)
-            if len(local) == 0:
-                bpy.ops.object.mode_set(mode="EDIT")
-                self.report({"ERROR"}, "Select points of the shape, or give a location")
-                return {"CANCELLED"}
-            # In the rig owner's space: a duplicate that follows its rig is mapped through the
-            # cage in the owner's local coordinates, wherever the duplicate stands.
-            locations = transform_points(obj.matrix_world, local)
-        added = []
+        given = self.properties.is_property_set("location")
+        at_selection = active.mode == "EDIT" and not given
         try:
-            for location in locations:
-                # Selected points are given at rest (the data is the rest shape).
-                added.append(handles.add(obj, location, kind=self.kind,
-                                         on_rest=was_edit and not self.properties.is_property_set("location")))
+            # Leaving Edit Mode writes the selection into the data.
+            with _in_object_mode(active):
+                added = handles.add_all(obj, self._locations(context, active, obj, given, at_selection),
+                                        kind=self.kind, on_rest=at_selection)
+                rig.pose_safely(obj, context.evaluated_depsgraph_get())
         except RigError as err:
-            if added:
-                handles.remove(obj, set(added))  # all or nothing
-            if was_edit:
-                bpy.ops.object.mode_set(mode="EDIT")
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
-        rig.pose_safely(obj, context.evaluated_depsgraph_get())
-        if was_edit:
-            bpy.ops.object.mode_set(mode="EDIT")
-        else:
+        if active.mode == "OBJECT":  # as Blender adds objects: the new ones selected and active
             for other in context.selected_objects:
                 other.select_set(False)
             for empty in added:
                 empty.select_set(True)
             context.view_layer.objects.active = added[-1]
         return {"FINISHED"}
+
+    def _locations(self, context, active, obj, given, at_selection):
+        """World locations (k, 3) of the handles to add, in the rig owner's space."""
+        if not at_selection:
+            # As Blender adds things in Object Mode: at the 3D cursor (projected onto the plane).
+            locations = np.array([self.location if given else context.scene.cursor.location], dtype=np.float64)
+            if rig_format.is_follower(active):
+                # On a duplicate that follows the rig: the same place on the owner.
+                onto_owner = np.array(obj.matrix_world) @ np.linalg.inv(np.array(active.matrix_world))
+                locations = transform_points(onto_owner, locations)
+            return locations
+        local = sources.module_for(active).selected(active)
+        if len(local) == 0:
+            raise RigError("Select points of the shape, or give a location")
+        # Through the owner's matrix: a duplicate that follows its rig shares the owner's rest
+        # shape in its own local coordinates, wherever the duplicate stands.
+        return transform_points(obj.matrix_world, local)
 
 
 class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
@@ -201,7 +193,10 @@ def _in_object_mode(obj):
         yield
     finally:
         if was != "OBJECT" and _still_active(obj):
-            bpy.ops.object.mode_set(mode=was)
+            try:
+                bpy.ops.object.mode_set(mode=was)
+            except RuntimeError:
+                pass  # Blender refuses some modes to a hidden object: it stays in Object Mode
 
 
 def _still_active(obj):

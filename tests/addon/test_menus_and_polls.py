@@ -165,3 +165,27 @@ def test_deleting_a_handles_empty_removes_the_handle(addon):
     bpy.context.view_layer.objects.active = obj
     assert bpy.ops.shapedeform.remove_handle(handle=middle.name) == {"FINISHED"}
     assert [h.object for h in obj.shapedeform.handles] == [left, right]
+
+
+def test_add_handle_in_draw_mode_keeps_the_mode_and_the_active_object(addon):
+    """From grease pencil's Draw Mode (or Sculpt Mode) the handle goes to the 3D cursor and the
+    drawing stays active in its mode (the new Empty was made active, the drawing left stranded)."""
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    monkey = bpy.context.active_object
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="PAINT_GREASE_PENCIL")
+    bpy.context.scene.cursor.location = (0.0, 0.0, 0.0)
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    assert len(monkey.shapedeform.handles) == 1
+    assert bpy.context.active_object == monkey and monkey.mode == "PAINT_GREASE_PENCIL"
+
+
+def test_a_hidden_object_in_edit_mode_is_unbound_without_a_traceback(addon):
+    """Blender lets a hidden object leave Edit Mode but not enter it again: Unbind works and
+    leaves it in Object Mode (it raised from going back, the rig already removed)."""
+    obj, _, _ = rig_with_two_handles()
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.object.mode_set(mode="EDIT")
+    obj.hide_viewport = True
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert not obj.shapedeform.is_bound and obj.mode == "OBJECT"
