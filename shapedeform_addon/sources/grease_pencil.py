@@ -183,21 +183,46 @@ def restore_legacy(obj):
 
 
 def selected(obj):
-    """Layer-space rest positions (k, 3) of selected stroke points of the current drawings of
-    the layers Edit Mode edits (shown and unlocked)."""
+    """Layer-space rest positions (k, 3) of selected stroke points of the current drawings,
+    of what Edit Mode edits: strokes on shown, unlocked layers (in shown, unlocked groups),
+    drawn with shown materials that are unlocked (or on layers that ignore locked materials)."""
+    slots = obj.material_slots
+    hidden = np.array([_material_flag(slot, "hide") for slot in slots] + [False])
+    locked = np.array([_material_flag(slot, "lock") for slot in slots] + [False])
     chosen = []
     for layer in obj.data.layers:
         frame = layer.current_frame()
-        if layer.hide or layer.lock or frame is None or frame.drawing is None:
+        if not _editable(layer) or frame is None or frame.drawing is None:
             continue
         drawing = frame.drawing
         points = _points(drawing)
-        chosen.append(points[_selection(drawing, len(points))])
+        offsets = np.empty(len(drawing.curve_offsets), dtype=np.int64)
+        drawing.curve_offsets.foreach_get("value", offsets)
+        strokes = len(offsets) - 1
+        material = np.clip(_values(drawing, "material_index", strokes, np.int32, 0), 0, len(hidden) - 1)
+        frozen = hidden[material] | (locked[material] & (not layer.ignore_locked_materials))
+        chosen.append(points[_selection(drawing, len(points), offsets) & ~np.repeat(frozen, np.diff(offsets))])
     return np.concatenate(chosen).astype(np.float64) if chosen else np.empty((0, 3))
 
 
-def _selection(drawing, count):
-    """Which of a drawing's ``count`` points are selected (count,) bool.
+def _editable(layer):
+    """Whether Edit Mode edits ``layer``: it and every group it is in are shown and unlocked."""
+    node = layer
+    while node is not None:
+        if node.hide or node.lock:
+            return False
+        node = node.parent_group
+    return True
+
+
+def _material_flag(slot, flag):
+    style = slot.material.grease_pencil if slot.material is not None else None
+    return bool(style is not None and getattr(style, flag))
+
+
+def _selection(drawing, count, offsets):
+    """Which of a drawing's ``count`` points are selected (count,) bool; ``offsets`` (s + 1,)
+    are its strokes' first points.
 
     Blender drops the ``.selection`` attribute when everything is selected (and a new drawing
     has none), keeps it per stroke in Stroke select mode, and per point otherwise.
@@ -209,7 +234,5 @@ def _selection(drawing, count):
     attribute.data.foreach_get("value", values)
     values = values > 0
     if attribute.domain == "CURVE":
-        offsets = np.empty(len(drawing.curve_offsets), dtype=np.int64)
-        drawing.curve_offsets.foreach_get("value", offsets)
         return np.repeat(values, np.diff(offsets)) if len(values) == len(offsets) - 1 else np.zeros(count, bool)
     return values if len(values) == count else np.zeros(count, dtype=bool)

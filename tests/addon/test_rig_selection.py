@@ -63,9 +63,22 @@ def test_grease_pencil_selection_as_blender_keeps_it(addon):
     bpy.ops.grease_pencil.select_all(action="SELECT")
     total = sum(len(layer.current_frame().drawing.attributes["position"].data) for layer in obj.data.layers)
     assert len(selected(obj)) == total
+    lines = len(obj.data.layers["Lines"].current_frame().drawing.attributes["position"].data)
     obj.data.layers["Fills"].hide = True
-    assert len(selected(obj)) == len(obj.data.layers["Lines"].current_frame().drawing.attributes["position"].data)
+    assert len(selected(obj)) == lines
     obj.data.layers["Fills"].hide = False
+    group = obj.data.layer_groups.new("Group")  # a hidden group hides its layers from Edit Mode
+    obj.data.layers.move_to_layer_group(obj.data.layers["Fills"], group)
+    group.hide = True
+    assert len(selected(obj)) == lines
+    group.hide = False
+    # So do hidden materials (Deselect All leaves their strokes' selection as it was).
+    black = next(slot.material for slot in obj.material_slots if slot.material.name == "Black")
+    black.grease_pencil.hide = True
+    shown = sum(len(stroke.points) for layer in obj.data.layers for stroke in layer.current_frame().drawing.strokes
+                if obj.material_slots[stroke.material_index].material != black)
+    assert 0 < len(selected(obj)) == shown < total
+    black.grease_pencil.hide = False
 
     bpy.ops.grease_pencil.select_all(action="DESELECT")
     drawing = obj.data.layers["Lines"].current_frame().drawing
