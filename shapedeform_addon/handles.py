@@ -220,6 +220,10 @@ def follow(obj):
     data was transformed. A follower made by an older version gets its cage here too.
     """
     cage = obj.shapedeform.cage
+    followed = _rig_followed(obj)
+    if followed != cage.shapedeform.rig:  # duplicated with a rig's owner and handles: follow the copy
+        settle_duplicate(followed)  # the copied owner gets its own cage first
+        cage = followed.shapedeform.cage
     placed = cage.parent == obj or any(getattr(c, "target", None) == obj for c in cage.constraints)
     if not placed:  # the owner's or another follower's (just duplicated, or an older file's)
         cage = _cage_for(obj, cage, cage.data)
@@ -228,6 +232,16 @@ def follow(obj):
         # when the duplicate does (nothing else uses it, so it is not saved).
         obj.shapedeform.cage = cage
     return rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage})
+
+
+def _rig_followed(obj):
+    """The owner of the rig a follower follows: its cage's, unless it was duplicated together
+    with a rig's owner and handles (a whole set, as an armature duplicated with its meshes): its
+    handle list then names the copied handles, whose rig it follows."""
+    current = obj.shapedeform.cage.shapedeform.rig
+    named = {item.object.shapedeform.rig for item in obj.shapedeform.handles if item.object is not None}
+    copied = [rig for rig in named if rig not in (None, current) and rig.shapedeform.is_bound]
+    return copied[0] if len(copied) == 1 else current
 
 
 def follower_cages(obj):

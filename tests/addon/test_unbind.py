@@ -299,6 +299,33 @@ def test_deleting_a_duplicate_that_follows_a_rig_leaves_nothing_behind(addon, tm
     assert [o.name for o in bpy.data.objects if o.type == "MESH" and o.shapedeform.rig is not None] == ["Grid Cage"]
 
 
+def test_a_set_duplicated_with_its_follower_follows_the_copied_rig(addon):
+    """Owner, handles and a duplicate following them, duplicated together: the copies make a
+    rig of their own and the copied follower follows it (it kept following the original's)."""
+    original, left, right = rig_with_two_handles()
+    follower = _duplicate(original, False)
+    follower.location.y += 3.0
+    bpy.context.view_layer.update()
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    for o in (original, left, right, follower):
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = original
+    assert bpy.ops.object.duplicate() == {"FINISHED"}
+    copies = list(bpy.context.selected_objects)
+    bpy.context.view_layer.update()
+    owner = next(o for o in copies if o.type == "MESH" and addon.shapedeform_addon.rig_format.is_owner(o))
+    copied_follower = next(o for o in copies if o.type == "MESH" and o != owner)
+    assert addon.shapedeform_addon.rig_format.owner_of(copied_follower) == owner
+    handle = owner.shapedeform.handles[-1].object
+    before = checks.evaluated_mesh_points(copied_follower).copy()
+    handle.location.y += 0.5
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(checks.evaluated_mesh_points(copied_follower), checks.evaluated_mesh_points(owner),
+                               atol=1e-6)
+    assert np.abs(checks.evaluated_mesh_points(copied_follower) - before).max() > 0.1
+
+
 def _assert_still_follows(original, handle, rest):
     """The original's rig is live: moving its right handle up moves the grid's right tip."""
     handle.location.y += 0.4
