@@ -350,8 +350,10 @@ def is_baked(obj):
 def owners(scene):
     """Rig owners that ``scene`` shows: its objects, and those of the collections its objects
     instance, at any depth (a character shown in a shot by a Collection Instance, or in a set
-    that is itself instanced). Linked rigs (library data without an override) are left out:
-    nothing here can pose them (a bake in their own file can)."""
+    that is itself instanced), and the owners of the duplicates following a rig it shows (a
+    copy moved to another scene poses there with its rig's handles, which its modifier has
+    Blender evaluate wherever it is). Linked rigs (library data without an override) are left
+    out: nothing here can pose them (a bake in their own file can)."""
     found, seen = [], set()
     objects = list(scene.objects)
     for obj in objects:  # grows with the objects of each instanced collection, in scene order
@@ -359,8 +361,9 @@ def owners(scene):
         if collection is not None and collection.session_uid not in seen:
             seen.add(collection.session_uid)  # an instance cycle ends here
             objects.extend(collection.all_objects)
-        if _posable_owner(obj):
-            found.append(obj)
+        owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
+        if _posable_owner(owner):
+            found.append(owner)
     return list(dict.fromkeys(found))  # shown twice, posed once
 
 

@@ -326,6 +326,29 @@ def test_a_set_duplicated_with_its_follower_follows_the_copied_rig(addon):
     assert np.abs(checks.evaluated_mesh_points(copied_follower) - before).max() > 0.1
 
 
+def test_a_duplicate_moved_to_another_scene_plays_its_rigs_animation_there(addon):
+    """The copy alone in a shot scene: its rig's keyed handle poses it on every frame there
+    (it showed the last pose written in the first scene), and the shot's bake finds the rig."""
+    original, _, right = rig_with_two_handles()
+    first = bpy.context.scene
+    right.keyframe_insert("location", frame=1)
+    right.location.y += 0.6
+    right.keyframe_insert("location", frame=10)
+    first.frame_set(1)
+    copy = _duplicate(original, False)
+    shot = bpy.data.scenes.new("Shot")
+    shot.collection.objects.link(copy)
+    first.collection.objects.unlink(copy)
+    bpy.context.window.scene = shot
+    shapedeform = addon.shapedeform_addon
+    assert shapedeform.rig_format.owners(shot) == [original]
+    tops = []
+    for frame in (1, 10):
+        shot.frame_set(frame)
+        tops.append(checks.evaluated_mesh_points(copy)[:, 1].max())
+    assert tops[1] - tops[0] == pytest.approx(0.6, abs=0.05)
+
+
 def _assert_still_follows(original, handle, rest):
     """The original's rig is live: moving its right handle up moves the grid's right tip."""
     handle.location.y += 0.4
