@@ -155,8 +155,8 @@ def _build(group):
     geometry = b.node("GeometryNodeSubdivideMesh", {"Mesh": given.outputs[0], "Level": given.outputs[REFINE_INPUT]}).outputs[0]
     cage = _Cage(b, given.outputs[CAGE_INPUT])
     selection = _rigged_selection(b, given.outputs[RIGGED_INPUT])
-    curves = _map_bezier_handles(b, cage, geometry, selection)
-    moved = _map_points(b, cage, curves, selection)
+    curves, left, right = _map_bezier_handles(b, cage, geometry, selection)
+    moved = _set_bezier_handles(b, _map_points(b, cage, curves, selection), selection, left, right)
     ordered = _stroke_order(b, cage, moved, given.outputs[ORDER_INPUT])
     # No cage (deleted by hand, or no faces): the geometry passes unchanged.
     faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.geometry}, component="MESH")
@@ -280,17 +280,39 @@ def _rigged_selection(b, rigged_name):
 
 
 def _map_bezier_handles(b, cage, geometry, selection):
-    """Bezier handles mapped from where they are, then set FREE so Blender does not derive them
-    again from the moved control points (Set Position leaves handles that are set)."""
+    """Bezier handles set FREE, so Blender does not derive them again from the moved control
+    points, and their mapped positions captured from where they are: (curve, left, right).
+    Vector handles stay vector: Blender keeps their segments straight between the moved points.
+
+    Set Position drags a FREE handle along with its control point, so the mapped positions are
+    set after the points move (:func:`_set_bezier_handles`); set before, each handle moved by its
+    own map and again by its point's (a circle dragged by 0.25 strayed 0.19 from the drag)."""
     handles = b.node("GeometryNodeInputCurveHandlePositions")
-    free = b.node("GeometryNodeCurveSetHandles", {"Curve": geometry, "Selection": selection},
-                  handle_type="FREE", mode={"LEFT", "RIGHT"})
-    left = b.node("GeometryNodeSetCurveHandlePositions",
-                  {"Curve": free.outputs[0], "Selection": selection, "Position": cage.mapped(handles.outputs["Left"])},
-                  mode="LEFT")
-    return b.node("GeometryNodeSetCurveHandlePositions",
-                  {"Curve": left.outputs[0], "Selection": selection, "Position": cage.mapped(handles.outputs["Right"])},
-                  mode="RIGHT").outputs[0]
+    curve = geometry
+    for side in ("LEFT", "RIGHT"):
+        curve = b.node("GeometryNodeCurveSetHandles", {"Curve": curve, "Selection": _free(b, selection, side)},
+                       handle_type="FREE", mode={side}).outputs[0]
+    captured = b.node("GeometryNodeCaptureAttribute", {"Geometry": curve}, domain="POINT")
+    for side in ("Left", "Right"):
+        captured.capture_items.new("VECTOR", side)
+        # By name: Blender 5.2 added a Selection input before the captured items.
+        b.group.links.new(cage.mapped(handles.outputs[side]), captured.inputs[side])
+    return captured.outputs[0], captured.outputs["Left"], captured.outputs["Right"]
+
+
+def _free(b, selection, side):
+    """``selection`` less the points whose ``side`` ("LEFT" or "RIGHT") handle is a vector one."""
+    vector = b.node("GeometryNodeCurveHandleTypeSelection", handle_type="VECTOR", mode={side}).outputs[0]
+    return b.node("FunctionNodeBooleanMath", [selection, vector], operation="NIMPLY").outputs[0]
+
+
+def _set_bezier_handles(b, curve, selection, left, right):
+    """The free Bezier handles of the moved ``curve`` put where their mapped positions are."""
+    for side, position in (("LEFT", left), ("RIGHT", right)):
+        curve = b.node("GeometryNodeSetCurveHandlePositions",
+                       {"Curve": curve, "Selection": _free(b, selection, side), "Position": position},
+                       mode=side).outputs[0]
+    return curve
 
 
 def _map_points(b, cage, geometry, selection):

@@ -139,3 +139,30 @@ def test_a_curve_with_path_animation_moves_with_its_handles(addon, quiet):
     assert obj.shapedeform.status == ""
     np.testing.assert_allclose(checks.evaluated_curve_points(obj), posed, atol=1e-5)
     assert handle.matrix_world.translation.x > 3.0
+
+
+@pytest.mark.parametrize("handle_type, dimensions", [("AUTO", "2D"), ("AUTO", "3D"), ("VECTOR", "2D")])
+def test_a_curve_moved_by_its_only_handle_moves_rigidly(addon, handle_type, dimensions):
+    """One handle moves the cage rigidly, so the curve must move by exactly the handle's move,
+    Bezier handles included (each was moved by its own map and again by its control point's:
+    a circle strayed 0.19 from a drag of 0.25, a square's straight edges bowed by 0.15)."""
+    if handle_type == "VECTOR":
+        bpy.ops.curve.primitive_bezier_circle_add()
+        obj = bpy.context.active_object
+        spline = obj.data.splines[0]
+        for point, corner in zip(spline.bezier_points, [(-1, -1), (1, -1), (1, 1), (-1, 1)]):
+            point.co = (*corner, 0.0)
+            point.handle_left_type = point.handle_right_type = "VECTOR"
+    else:
+        bpy.ops.curve.primitive_bezier_circle_add()
+        obj = bpy.context.active_object
+    obj.data.dimensions = dimensions
+    obj.data.use_path = False
+    rest = evaluated_vertices(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    handle.location = (handle.location.x + 0.2, handle.location.y + 0.15, handle.location.z)
+    bpy.context.view_layer.update()
+    posed = evaluated_vertices(obj)
+    assert posed.shape == rest.shape
+    np.testing.assert_allclose(posed, rest + [0.2, 0.15, 0.0], atol=1e-4)
