@@ -117,9 +117,10 @@ def begin(context, obj, ray, pin=False):
         handle = handles.add(obj, tuple(shape[index]))
         context.view_layer.update()
         return DragState(obj, handle, True, plane, hit, missing)
-    # A handle deleted in the viewport lingers as an orphan (in no scene): never grab it.
+    # A handle deleted in the viewport lingers as an orphan (in no scene): never grab it. Pins
+    # pull nothing and ride on the cage: dragging one would only pull it off the shape.
     candidates = [item.object for item in settings.handles
-                  if rig_format.present(item.object)]
+                  if rig_format.present(item.object) and item.object.shapedeform.pin_kind == "POSITION"]
     if not candidates:
         raise RigError(f"'{obj.name}' has no handles: add one, or Ctrl+click to pin the shape")
     centres = np.array([_matrix(h.matrix_world)[:3, 3] for h in candidates]).reshape(-1, 3)

@@ -85,7 +85,8 @@ def trace_silhouette(image, level=0.5, tolerance=0.5, max_vertices=None, min_are
     # contourpy places sample (r, c) at (x=c, y=r); pixel centres sit at +0.5, minus the pad.
     rings = [line[:-1] - 0.5 for line in lines if len(line) >= 4]
     if not rings:
-        raise ValueError(f"no pixel reaches level {level}: nothing to trace")
+        raise ValueError(f"no pixel is as opaque as the level {level:.3g} (is the picture fully transparent?): "
+                         "nothing to trace")
     geometry = shape_geometry(rings)
     geometry = _drop_specks(geometry, min_area)
     if geometry.is_empty:

@@ -66,6 +66,22 @@ def test_modal_drag_follows_the_mouse_and_confirms(addon):
     assert reports == []
 
 
+def test_a_drag_grabs_the_nearest_handle_never_a_pin(addon):
+    """An overlap pin nearer the click than any handle: the handle is grabbed (the pin was, and
+    left off the shape it rides on, the shape unmoved)."""
+    obj, left, right = rig_with_two_handles()
+    bpy.context.view_layer.objects.active = obj
+    near = np.array(right.matrix_world.translation) + np.array([-0.15, 0.0, 0.0])
+    assert bpy.ops.shapedeform.add_handle(location=tuple(near), kind="OVERLAP") == {"FINISHED"}
+    pin = obj.shapedeform.handles[-1].object
+    bpy.context.view_layer.update()
+    modal, op, _ = operator_stand_in(addon, obj)
+    click = np.array(pin.matrix_world.translation) + np.array([0.01, 0.0, 0.0])
+    modal(op, bpy.context, event("LEFTMOUSE", "PRESS", click))
+    assert op.session.state.handle == right
+    modal(op, bpy.context, event("RIGHTMOUSE", "PRESS"))
+
+
 def test_modal_cancel_restores_handle_and_shape_exactly(addon):
     obj, left, right = rig_with_two_handles()
     right.location.y += 0.2
