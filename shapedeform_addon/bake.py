@@ -154,6 +154,9 @@ class Bake:
                                "unbind it and bind it again")
             if not any(rig_format.present(item.object) for item in settings.handles):
                 raise RigError(f"'{obj.name}' has no handles: nothing moves, nothing to bake")
+            if not rig_format.modifiers_of(obj):
+                raise RigError(f"'{obj.name}' lost its Shape Deform modifier (applied, removed, or converted): "
+                               "nothing would play the bake; Unbind removes the rig and keeps the shape")
         # Frames are posed from this depsgraph: an object it leaves out would bake stale handles.
         depsgraph = bpy.context.evaluated_depsgraph_get()
         for obj in self.objects:

@@ -126,7 +126,10 @@ def _bake(args):
         if unbound:
             raise _UsageError(f"not rigged with Shape Deform: {', '.join(map(repr, unbound))}")
     else:
-        objects = [o for o in rig_format.owners(scene)
+        # Bound objects whose rig broke (a cage deleted by hand) too: the bake then says why.
+        broken = [o for o in scene.objects if o.shapedeform.is_bound and o.shapedeform.cage is None
+                  and o.library is None]
+        objects = [o for o in rig_format.owners(scene) + broken
                    if any(rig_format.present(h.object) for h in o.shapedeform.handles)]
         if not objects:
             raise _UsageError(f"scene '{scene.name}' has no rigs with handles to bake")

@@ -134,9 +134,11 @@ def _weight_label(term):
 
 
 def signature(obj):
-    """What the deformer depends on besides stored data: handles and settings."""
+    """What the deformer depends on besides stored data: handles, settings, and which cage it
+    writes (a cage removed or edited by hand makes the rig rebuild, which says so)."""
     s = obj.shapedeform
-    return (tuple((item.object.name, item.object.shapedeform.pin_kind, item.object.shapedeform.extent,
+    cage = (s.cage.session_uid, len(s.cage.data.vertices)) if s.cage is not None else None
+    return (cage, tuple((item.object.name, item.object.shapedeform.pin_kind, item.object.shapedeform.extent,
                    item.object.shapedeform.stiffness if item.object.shapedeform.pin_kind == "STARCH" else None)
                   if rig_format.present(item.object) else None for item in s.handles),
             s.weight_laplacian, s.weight_mvc, s.weight_edge, s.preserve_area, s.prevent_flips)

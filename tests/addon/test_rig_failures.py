@@ -125,3 +125,33 @@ def test_a_handle_cannot_be_added_at_a_location_that_is_not_finite(addon, value)
     with pytest.raises(RuntimeError, match="not a finite point"):
         bpy.ops.shapedeform.add_handle(location=(value, 0.0, 0.0))
     assert len(obj.shapedeform.handles) == count
+
+
+@pytest.mark.parametrize("how", ["removed", "edited"])
+def test_a_cage_removed_or_edited_under_a_posed_rig_is_reported_and_refused_by_the_bake(addon, how, tmp_path,
+                                                                                      capsys):
+    """The rig was built and cached when its cage went (or lost a vertex): the next move says why
+    in the status (it raised from the handler on every move and frame), and the command line's
+    bake refuses it by name (a removed cage left it out: 'no rigs with handles to bake')."""
+    obj, _, handle = rig_with_two_handles()
+    handle.location.y += 0.2
+    bpy.context.view_layer.update()
+    cage = obj.shapedeform.cage
+    if how == "removed":
+        bpy.data.objects.remove(cage)
+    else:
+        cage.data.vertices.add(1)
+    handle.location.y += 0.2
+    bpy.context.view_layer.update()
+    assert ("lost its cage" if how == "removed" else "was edited") in obj.shapedeform.status
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "broken.blend"))
+    assert addon.shapedeform_addon.cli.main(["bake", "--frames", "1-2"]) == 1
+    assert "'Grid'" in capsys.readouterr().err
+
+
+def test_the_bake_refuses_a_rig_that_lost_its_modifier(addon):
+    obj, _, handle = rig_with_two_handles()
+    handle.keyframe_insert("location", frame=1)
+    obj.modifiers.remove(addon.shapedeform_addon.rig_format.modifiers_of(obj)[0])
+    with pytest.raises(addon.shapedeform_addon.errors.RigError, match="lost its Shape Deform modifier"):
+        addon.shapedeform_addon.bake.bake_objects([obj], 1, 2)
