@@ -23,7 +23,7 @@ from .. import compat
 from ..errors import RigError
 from .prepared import Prepared
 from ..nodes import ORDER_INPUT, RIGGED
-from ..rig_format import LEGACY_GP_FRAMES, LEGACY_GP_LAYERS, RIGGED_KEY
+from ..rig_format import LEGACY_GP_FRAMES, LEGACY_GP_LAYERS, RIGGED_KEY, modifiers_of
 from .mesh import REST_ATTRIBUTE, read_vectors
 
 # Strokes thinner than this fraction of the drawing's size are swept this wide, so a hairline
@@ -78,9 +78,12 @@ def stroke_order_losses(obj):
     parents are not (a parented layer would jump to where it is drawn unparented), and each
     keeps only the current frame's drawing, so onion skins of its other keyframes vanish from
     the viewport. Lighting matters only where the object uses lights too
-    (the 2D Animation template's objects do not).
+    (the 2D Animation template's objects do not). The rebuilt drawings all start at frame 0, so
+    a Build modifier after the rig's, which times strokes from their keyframe, draws nothing.
     """
     layers = list(obj.data.layers)
+    ours = [k for k, m in enumerate(obj.modifiers) if m in modifiers_of(obj)]
+    later = [m for m in obj.modifiers[ours[0] + 1:] if m.type == "GREASE_PENCIL_BUILD"] if ours else []
     checks = (
         ("lights on", [layer for layer in layers if layer.use_lights] if obj.use_grease_pencil_lights else []),
         ("onion skins of", [layer for layer in layers if layer.use_onion_skinning and len(layer.frames) > 1]),
@@ -88,8 +91,9 @@ def stroke_order_losses(obj):
         ("masks of", [layer for layer in layers if layer.use_masks and len(layer.mask_layers)]),
         ("view-layer filters of", [layer for layer in layers if layer.viewlayer_render]),
         ("parents of", [layer for layer in layers if layer.parent is not None]),
+        ("the keyframe timing read by", later),
     )
-    return [f"{what} " + ", ".join(f"'{layer.name}'" for layer in found) for what, found in checks if found]
+    return [f"{what} " + ", ".join(f"'{item.name}'" for item in found) for what, found in checks if found]
 
 
 def prepare(obj, settings):

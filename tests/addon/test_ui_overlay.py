@@ -167,3 +167,18 @@ def test_a_handle_left_by_a_deleted_object_offers_unbind_and_says_why(addon):
     assert "shapedeform.unbind" in drawn(bpy.context)
     assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
     assert not any(o.shapedeform.rig is not None and o.shapedeform.rig.name == name for o in bpy.data.objects)
+
+
+def test_a_build_modifier_after_the_rig_is_named_among_what_stroke_order_drops(addon):
+    """Stroke Order's rebuilt drawings start at frame 0: a Build modifier after the rig's drew
+    nothing on any frame. The sidebar names it; before the rig's it is unaffected."""
+    grease_pencil = addon.shapedeform_addon.sources.grease_pencil
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    monkey = bpy.context.active_object
+    monkey.use_grease_pencil_lights = False
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert grease_pencil.stroke_order_losses(monkey) == []
+    build = monkey.modifiers.new("Build", "GREASE_PENCIL_BUILD")
+    assert grease_pencil.stroke_order_losses(monkey) == ["the keyframe timing read by 'Build'"]
+    monkey.modifiers.move(len(monkey.modifiers) - 1, 0)
+    assert monkey.modifiers[0] == build and grease_pencil.stroke_order_losses(monkey) == []
