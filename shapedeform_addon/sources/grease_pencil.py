@@ -151,7 +151,19 @@ def prepare(obj, settings):
         o.shapedeform[RIGGED_KEY] = name
 
     # Stroke Order is on wherever it costs the drawing nothing.
-    return Prepared(plane, graph, commit, modifier_inputs={ORDER_INPUT: not stroke_order_losses(obj)})
+    return Prepared(plane, graph, commit, advice=_transformed_layers_advice([layer for layer, _ in frames]),
+                    modifier_inputs={ORDER_INPUT: not stroke_order_losses(obj)})
+
+
+def _transformed_layers_advice(layers):
+    """Advice on rigged layers with a transform of their own ("" when none has one): the rig
+    reads and deforms strokes in their layer's space, where the transform has not moved them."""
+    moved = [layer.name for layer in layers
+             if any(layer.translation) or any(layer.rotation) or tuple(layer.scale) != (1.0, 1.0, 1.0)]
+    if not moved:
+        return ""
+    return (f"{', '.join(map(repr, moved))} {'is' if len(moved) == 1 else 'are'} moved by a layer transform: the rig "
+            "works where the strokes lie without it, so put handles there (or apply the layer transform and bind again)")
 
 
 def unbind(obj):

@@ -109,3 +109,11 @@ def test_a_drawing_with_an_empty_layer_binds(addon):
     assert any(len(layer.current_frame().drawing.strokes) == 0 for layer in obj.data.layers)
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert obj.shapedeform.is_bound
+
+
+def test_bind_warns_about_a_layer_moved_by_its_own_transform(addon, capsys):
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    monkey = bpy.context.active_object
+    monkey.data.layers["Lines"].translation = (2.0, 0.0, 0.0)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert "'Lines' is moved by a layer transform" in capsys.readouterr().out
