@@ -120,8 +120,7 @@ def unbind(obj):
         obj.modifiers.remove(modifier)
     lost = []
     if rig_format.is_follower(obj):
-        owner = settings.cage.shapedeform.rig
-        if settings.cage != owner.shapedeform.cage:  # its own (handles.follow), sharing the rig's mesh
+        if handles.is_own_cage(obj, settings.cage):  # its own (handles.follow), sharing the rig's mesh
             bpy.data.objects.remove(settings.cage)
         settings.handles.clear()
         settings.handle_collection = None

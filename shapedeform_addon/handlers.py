@@ -144,8 +144,8 @@ def on_undo(*_args):
 
 @persistent
 def on_load(*_args):
-    """A file was opened: rigs are rebuilt from the data saved in it, duplicates are pointed
-    at their rig and every rig of the scene is posed, so a file edited while the extension was
+    """A file was opened: rigs are rebuilt from the data saved in it, duplicates are settled
+    as followers of their rig and every rig of the scene is posed, so a file edited while the extension was
     disabled (a handle moved, an object duplicated) shows what its handles say at once."""
     rig.forget()
     sync_scene()
@@ -177,7 +177,9 @@ def register():
     for name, function in _HANDLERS:
         getattr(bpy.app.handlers, name).append(function)
     # Enabled in an open file (Preferences): once Blender is idle, as data cannot be written
-    # while add-ons register (without a window loop the timer never runs, nor needs to).
+    # while add-ons register. Without a window loop the timer never runs: a script that enables
+    # the extension in an open file calls sync_scene() itself (an older version's group and
+    # followers are then brought up to date; until then they deform as that version did).
     bpy.app.timers.register(_sync_once, first_interval=0.0)
 
 

@@ -219,19 +219,27 @@ def follow(obj):
     the owner's cage, a duplicate read the rig in the owner's data space, and jumped when either
     data was transformed. A follower made by an older version gets its cage here too.
     """
+    if not all(m.node_group.get(nodes.VERSION_KEY) == nodes.VERSION for m in rig_format.modifiers_of(obj)):
+        return False  # an older version's group (a linked library's) reads the owner's cage as it was
     cage = obj.shapedeform.cage
     followed = _rig_followed(obj)
     if followed != cage.shapedeform.rig:  # duplicated with a rig's owner and handles: follow the copy
         settle_duplicate(followed)  # the copied owner gets its own cage first
         cage = followed.shapedeform.cage
-    placed = cage.parent == obj or any(getattr(c, "target", None) == obj for c in cage.constraints)
-    if not placed:  # the owner's or another follower's (just duplicated, or an older file's)
+    if not is_own_cage(obj, cage):  # the owner's or another follower's (just duplicated, or an older file's)
         cage = _cage_for(obj, cage, cage.data)
         cage.name = f"{obj.name} Cage"
-        # In no collection: Blender evaluates it for the modifier that reads it, and it goes
-        # when the duplicate does (nothing else uses it, so it is not saved).
+        # In no collection: Blender evaluates it for the modifier that reads it, and when the
+        # duplicate is deleted nothing uses it any more (so it is not saved).
         obj.shapedeform.cage = cage
-    return rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage})
+    return rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage,
+                                         nodes.HANDLES_INPUT: followed.shapedeform.handle_collection})
+
+
+def is_own_cage(obj, cage):
+    """Whether ``cage`` sits on ``obj`` (parented to it, or following it by constraint): the
+    owner's cage on the owner, a follower's own cage on the follower."""
+    return cage.parent == obj or any(getattr(c, "target", None) == obj for c in cage.constraints)
 
 
 def _rig_followed(obj):

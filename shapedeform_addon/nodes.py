@@ -73,6 +73,12 @@ def node_group():
         return group
     if group is None or group.bl_idname != "GeometryNodeTree":
         group = bpy.data.node_groups.new(GROUP_NAME, "GeometryNodeTree")
+    _rebuild(group)
+    return group
+
+
+def _rebuild(group):
+    """Build ``group`` anew at this version; the modifiers using it keep their inputs' values."""
     # Rebuilding gives the inputs new identifiers: carry each modifier's values over by name.
     users = [(o, m) for o in bpy.data.objects for m in o.modifiers if m.type == "NODES" and m.node_group == group]
     old = input_identifiers(group)
@@ -91,17 +97,17 @@ def node_group():
         owner = cage.shapedeform.rig if cage is not None and cage.shapedeform.rig is not None else obj
         if HANDLES_INPUT not in old and owner.shapedeform.handle_collection is not None:
             compat.set_modifier_input(modifier, new[HANDLES_INPUT], owner.shapedeform.handle_collection)
-    return group
 
 
 def upgrade():
-    """Rebuild the open file's group if an older version made it (a file opened, the extension
-    enabled): the rest of the extension reads the current group's inputs (a duplicate's own
-    cage means nothing to version 9, which placed every cage in its owner's space)."""
-    group = bpy.data.node_groups.get(GROUP_NAME)
-    if group is not None and group.library is None and group.bl_idname == "GeometryNodeTree" \
-            and group.get(VERSION_KEY) != VERSION:
-        node_group()
+    """Rebuild the open file's groups an older version made (a file opened, the extension
+    enabled), appended copies ("Shape Deform.001") included: the rest of the extension reads
+    the current group's inputs (a duplicate's own cage means nothing to version 9, which placed
+    every cage in its owner's space). A linked library's group stays as the library has it."""
+    for group in list(bpy.data.node_groups):
+        if group.library is None and group.bl_idname == "GeometryNodeTree" and VERSION_KEY in group \
+                and group.get(VERSION_KEY) != VERSION:
+            _rebuild(group)
 
 
 def input_identifiers(group):
@@ -368,7 +374,8 @@ def _stroke_order(b, cage, moved, enabled):
                     operation="DOT_PRODUCT").outputs["Value"]
     # A ten-thousandth of the cage's size: far above rounding where the point and the layer
     # under it are the same, below the lift between the layers of any fold whose top moved a
-    # hundredth of the size more than its bottom (solver/rigging/depth.py).
+    # hundredth of the size more than its bottom, in drags up to about the shape's size (beyond,
+    # the automatic lift eases off and a larger difference is needed: solver/rigging/depth.py).
     margin = b.node("ShaderNodeMath", [cage_size, 1e-4], operation="MULTIPLY").outputs[0]
     above = b.node("ShaderNodeMath", [height, lowest], operation="SUBTRACT").outputs[0]
     higher = b.node("FunctionNodeCompare", {"A": above, "B": margin}, data_type="FLOAT",

@@ -13,7 +13,7 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatVectorProperty, StringProperty
 
-from ..solver.rigging.plane import transform_points
+from ..solver.rigging.plane import affine_inverse, transform_points
 from . import binding, handles, rig, rig_format, sources
 from .errors import RigError, poll_reason
 from .properties import PIN_KINDS
@@ -131,7 +131,7 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
             locations = np.array([self.location if given else context.scene.cursor.location], dtype=np.float64)
             if rig_format.is_follower(active):
                 # On a duplicate that follows the rig: the same place on the owner.
-                onto_owner = np.array(obj.matrix_world) @ np.linalg.inv(np.array(active.matrix_world))
+                onto_owner = np.array(obj.matrix_world) @ affine_inverse(np.array(active.matrix_world))
                 locations = transform_points(onto_owner, locations)
             return locations
         local = sources.module_for(active).selected(active)
@@ -150,20 +150,21 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     handle: StringProperty(name="Handle", options={"SKIP_SAVE"},
-                           description="Name of the handle Empty to remove (empty: the selected handles)")
+                           description="Name of a handle of the active rig to remove (empty: the selected handles)")
 
     @classmethod
     def poll(cls, context):
         reachable = rig_format.active_rig(context) is not None or any(map(handles.rig_of, context.selected_objects))
-        return poll_reason(cls, "" if reachable else "Select the handles to remove")
+        return poll_reason(cls, "" if reachable else "Select a rig or the handles to remove")
 
     def execute(self, context):
         if self.handle:
-            named = bpy.data.objects.get(self.handle)
-            owner = handles.rig_of(named) if named is not None else None
-            # A cage names its rig too: only an entry of the rig's handle list is a handle.
-            listed = owner is not None and any(item.object == named for item in owner.shapedeform.handles)
-            selected = [named] if listed else []
+            # Looked up in the active rig's list: in a shot with library overrides a local and a
+            # linked object may share the name, and a cage names its rig too.
+            owner = rig_format.active_rig(context)
+            listed = [item.object for item in owner.shapedeform.handles
+                      if item.object is not None and item.object.name == self.handle] if owner else []
+            selected = listed[:1]
         else:
             selected = [o for o in context.selected_objects if handles.rig_of(o) is not None]
         if not selected:

@@ -25,11 +25,12 @@ The cage, a mesh object parented to the owner (or copying its transform) and hid
     copy of the library's, made the first time the rig poses and again when the library's rig
     was bound anew (:func:`follow_library_cage`).
 Every object the rig deforms (the owner, and duplicates of it):
-    a Geometry Nodes modifier with the group of :mod:`.nodes`, whose inputs name the cage,
-    the owner, the handle collection and the layer attribute.
+    a Geometry Nodes modifier with the group of :mod:`.nodes`, whose inputs name its cage,
+    the rig's handle collection and the layer attribute.
 
 A duplicate of the owner (Shift+D, Alt+D) copies its settings and modifier: it *follows* the
-owner's rig (same cage, same handles) and is never posed on its own.
+owner's rig (the same handles; a cage object of its own, in no collection, parented to it and
+sharing the rig's cage mesh: :func:`.handles.follow`) and is never posed on its own.
 """
 
 import bpy

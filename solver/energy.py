@@ -421,7 +421,9 @@ def uncovered_points(energy, points):
     """:class:`UncoveredPoints` for ``points`` (k,) int, which no weighted term covers."""
     covers = {term: np.isin(points, touched) for term, touched in energy.term_points.items()}
     whole = [term for term, covered in covers.items() if covered.all()]
-    return UncoveredPoints(len(points), whole or [term for term, covered in covers.items() if covered.any()])
+    some = [term for term, covered in covers.items() if covered.any()]
+    # No term has rows on them (points on no triangle): any weight left at zero is all to try.
+    return UncoveredPoints(len(points), whole or some or [t for t, w in energy.weights.items() if w == 0.0])
 
 
 def similarity_rows(points, triangles):

@@ -20,8 +20,9 @@ The order, per graph point, is a score:
   not reach the body across the gap between them. Where extents meet, the amounts add up. A
   pin's unit amount outweighs the automatic order of any drag.
 
-Heights are ``HEIGHT_PER_SCORE`` of the size per unit of score: a layer a tenth of the size
-further moved is 1e-3 of the size in front, what depth buffers need to separate the layers
+Heights are ``HEIGHT_PER_SCORE`` of the size per unit of score: near rest (drags up to about the
+shape's size, beyond which the easing shrinks it) a layer a tenth of the size further moved is
+1e-3 of the size in front, what depth buffers need to separate the layers
 cleanly (Cycles, EEVEE and Workbench, orthographic and perspective: the renders of
 ``tests/addon/test_overlap_depth.py``); a pin at 1
 lifts its part 0.02 of the size, which a camera facing the plane does not see.

@@ -56,7 +56,7 @@ def test_every_operator_is_in_the_object_menu_and_the_bake_under_animation(addon
 
 @pytest.mark.parametrize("name, message", [
     ("add_handle", "Bind the object before adding handles"),
-    ("remove_handle", "Select the handles to remove"),
+    ("remove_handle", "Select a rig or the handles to remove"),
     ("unbind", "not bound"),
     ("drag", "Select a bound object"),
     ("bake", "Select bound objects to bake"),

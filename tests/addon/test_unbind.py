@@ -317,6 +317,10 @@ def test_a_set_duplicated_with_its_follower_follows_the_copied_rig(addon):
     owner = next(o for o in copies if o.type == "MESH" and addon.shapedeform_addon.rig_format.is_owner(o))
     copied_follower = next(o for o in copies if o.type == "MESH" and o != owner)
     assert addon.shapedeform_addon.rig_format.owner_of(copied_follower) == owner
+    shapedeform = addon.shapedeform_addon
+    modifier = shapedeform.rig_format.modifiers_of(copied_follower)[0]
+    handles_input = shapedeform.nodes.input_identifiers(modifier.node_group)[shapedeform.nodes.HANDLES_INPUT]
+    assert shapedeform.compat.modifier_input(modifier, handles_input) == owner.shapedeform.handle_collection
     handle = owner.shapedeform.handles[-1].object
     before = checks.evaluated_mesh_points(copied_follower).copy()
     handle.location.y += 0.5
