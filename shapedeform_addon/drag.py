@@ -157,11 +157,18 @@ def confirm(context, state):
         The handles that were keyed.
     """
     scene = context.scene
-    keyed = []
-    if scene.tool_settings.use_keyframe_insert_auto and (state.moved or state.pinned):
-        state.handle.keyframe_insert("location", frame=scene.frame_current)
-        keyed.append(state.handle)
-    return keyed
+    tools = scene.tool_settings
+    if not (tools.use_keyframe_insert_auto and (state.moved or state.pinned)):
+        return []
+    animation = state.handle.animation_data
+    if tools.auto_keying_mode == "REPLACE_KEYS" and (animation is None or animation.action is None):
+        return []  # Auto Keying's Replace mode keys only what is animated already
+    # As Blender's own auto-keying: the key type chosen in the timeline, and with "Only Insert
+    # Needed" no key where the curve already has the value.
+    needed = context.preferences.edit.use_auto_keyframe_insert_needed
+    state.handle.keyframe_insert("location", frame=scene.frame_current, keytype=tools.keyframe_type,
+                                 options={"INSERTKEY_NEEDED"} if needed else set())
+    return [state.handle]
 
 
 def cancel(context, state):

@@ -163,6 +163,18 @@ def test_auto_keying_keys_the_moved_handle(addon):
     keyed = {(c.data_path, c.array_index): [tuple(k.co) for k in c.keyframe_points] for c in bag.fcurves}
     assert keyed[("location", 1)] == [(7.0, right.location.y)]
     assert left.animation_data is None
+    # As Blender's auto-keying: the timeline's key type; in Replace mode only what is animated.
+    scene.tool_settings.keyframe_type = "BREAKDOWN"
+    scene.tool_settings.auto_keying_mode = "REPLACE_KEYS"
+    for handle in (right, left):
+        scene.frame_set(9)
+        start = np.array(handle.matrix_world.translation)
+        state = drag.begin(bpy.context, obj, ray(start))
+        drag.move(bpy.context, state, ray(start + [0.0, 0.2, 0.0]))
+        assert drag.confirm(bpy.context, state) == ([right] if handle == right else [])
+    curve = next(c for c in bag.fcurves if (c.data_path, c.array_index) == ("location", 1))
+    assert [k.type for k in curve.keyframe_points] == ["KEYFRAME", "BREAKDOWN"]
+    assert left.animation_data is None
 
 
 def test_undo_after_a_drag_gives_back_the_pose_and_the_rig_keeps_working(addon):
