@@ -162,7 +162,7 @@ def _build(group):
     cage = _Cage(b, given.outputs[CAGE_INPUT])
     selection = _rigged_selection(b, given.outputs[RIGGED_INPUT])
     curves, left, right = _map_bezier_handles(b, cage, geometry, selection)
-    moved = _set_bezier_handles(b, _map_points(b, cage, curves, selection), selection, left, right)
+    moved = _set_bezier_handles(b, cage, _map_points(b, cage, curves, selection), selection, left, right)
     ordered = _stroke_order(b, cage, moved, given.outputs[ORDER_INPUT])
     # No cage (deleted by hand, or no faces): the geometry passes unchanged.
     faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.geometry}, component="MESH")
@@ -287,12 +287,14 @@ def _rigged_selection(b, rigged_name):
 
 def _map_bezier_handles(b, cage, geometry, selection):
     """Bezier handles set FREE, so Blender does not derive them again from the moved control
-    points, and their mapped positions captured from where they are: (curve, left, right).
-    Vector handles stay vector: Blender keeps their segments straight between the moved points.
+    points, and where they were captured: (curve, left, right). Vector handles stay vector:
+    Blender keeps their segments straight between the moved points.
 
-    Set Position drags a FREE handle along with its control point, so the mapped positions are
-    set after the points move (:func:`_set_bezier_handles`); set before, each handle moved by its
-    own map and again by its point's (a circle dragged by 0.25 strayed 0.19 from the drag)."""
+    Set Position drags a FREE handle along with its control point, so the handles are mapped
+    from where they were after the points move (:func:`_set_bezier_handles`); mapped before,
+    each moved by its own map and again by its point's (a circle dragged by 0.25 strayed 0.19
+    from the drag). Only their places are captured here, a copy: mapping them is a search per
+    point that Set Curve Handle Positions runs on Bezier curves alone."""
     handles = b.node("GeometryNodeInputCurveHandlePositions")
     curve = geometry
     for side in ("LEFT", "RIGHT"):
@@ -302,7 +304,7 @@ def _map_bezier_handles(b, cage, geometry, selection):
     for side in ("Left", "Right"):
         captured.capture_items.new("VECTOR", side)
         # By name: Blender 5.2 added a Selection input before the captured items.
-        b.group.links.new(cage.mapped(handles.outputs[side]), captured.inputs[side])
+        b.group.links.new(handles.outputs[side], captured.inputs[side])
     return captured.outputs[0], captured.outputs["Left"], captured.outputs["Right"]
 
 
@@ -312,11 +314,12 @@ def _free(b, selection, side):
     return b.node("FunctionNodeBooleanMath", [selection, vector], operation="NIMPLY").outputs[0]
 
 
-def _set_bezier_handles(b, curve, selection, left, right):
-    """The free Bezier handles of the moved ``curve`` put where their mapped positions are."""
+def _set_bezier_handles(b, cage, curve, selection, left, right):
+    """The free Bezier handles of the moved ``curve`` mapped from where they were (``left`` and
+    ``right``, captured before the points moved)."""
     for side, position in (("LEFT", left), ("RIGHT", right)):
         curve = b.node("GeometryNodeSetCurveHandlePositions",
-                       {"Curve": curve, "Selection": _free(b, selection, side), "Position": position},
+                       {"Curve": curve, "Selection": _free(b, selection, side), "Position": cage.mapped(position)},
                        mode=side).outputs[0]
     return curve
 
