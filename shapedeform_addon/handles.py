@@ -220,7 +220,9 @@ def follow(obj):
     data was transformed. A follower made by an older version gets its cage here too.
     """
     if not all(m.node_group.get(nodes.VERSION_KEY) == nodes.VERSION for m in rig_format.modifiers_of(obj)):
-        return False  # an older version's group (a linked library's) reads the owner's cage as it was
+        # A linked library's older group: it reads the rig's cage in the space its Owner input
+        # names, which duplicating pointed at the copy.
+        return rig_format.point_inputs(obj, {nodes.LEGACY_OWNER_INPUT: obj.shapedeform.cage.shapedeform.rig})
     cage = obj.shapedeform.cage
     followed = _rig_followed(obj)
     if followed != cage.shapedeform.rig:  # duplicated with a rig's owner and handles: follow the copy

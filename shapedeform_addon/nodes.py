@@ -58,6 +58,9 @@ SCAFFOLD = "sd_unsorted"  # only inside the group: layers that carry materials t
 # A modifier made by version 1 of the group, which had no such input, reads ``RIGGED``.
 RIGGED = "sd_rigged"
 CAGE_INPUT, RIGGED_INPUT = "Cage", "Rigged Layers"
+# Up to version 9 the group read the deformed object's space from this input instead of Self
+# Object; only a linked library's group can still have it (``handles.follow``).
+LEGACY_OWNER_INPUT = "Owner"
 REFINE_INPUT, ORDER_INPUT = "Refine", "Stroke Order"
 # The rig's handle collection. Nothing in the group reads it: a modifier's ID inputs are its
 # object's dependencies, so Blender evaluates the handles' animation wherever the object is
