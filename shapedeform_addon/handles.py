@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from ..solver.rigging.handles import (frame_2d, handle_matrix, place, region_offsets,
+from ..solver.rigging.handles import (distance_off, frame_2d, handle_matrix, place, region_offsets,
                                       select_region)
 from ..solver.rigging.plane import affine_inverse
 from . import nodes, rig_format
@@ -56,7 +56,7 @@ def collection(obj):
     return collection
 
 
-def add(obj, location, on_rest=False, kind="POSITION"):
+def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     """Add a handle at a world ``location`` (projected onto the shape's plane).
 
     The handle owns the graph points near the place on the rest shape that is now under
@@ -66,6 +66,9 @@ def add(obj, location, on_rest=False, kind="POSITION"):
 
     A pin (``kind`` 'OVERLAP' or 'STARCH') pulls nothing: it is bound to the graph point under
     ``location`` and vertex-parented to that point of the cage, so it follows the shape.
+
+    A handle placed further off the shape than its region's radius holds the nearest part at a
+    distance, as a lever: ``notes`` (a list), when given, gets a sentence saying so.
 
     Returns
     -------
@@ -119,6 +122,10 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     # Matrix, not a list: a nested list would be read column by column.
     empty.matrix_basis = Matrix((cage_local @ matrix).tolist())
     empty.shapedeform.rig = obj
+    off = distance_off(rig.posed, point)
+    if notes is not None and off > radius:
+        notes.append(f"'{empty.name}' is {off / graph.size:.0%} of the shape's size off it: it holds the "
+                     "nearest part at a distance")
     item = settings.handles.add()
     item.object = empty
     item[rig_format.HANDLE_INDICES] = region.astype(np.int32)
@@ -128,13 +135,13 @@ def add(obj, location, on_rest=False, kind="POSITION"):
     return empty
 
 
-def add_all(obj, locations, kind="POSITION", on_rest=False):
+def add_all(obj, locations, kind="POSITION", on_rest=False, notes=None):
     """:func:`add` at each of ``locations`` (k, 3), all or none: the Empties added, or RigError
     with none left behind."""
     added = []
     try:
         for location in locations:
-            added.append(add(obj, location, on_rest=on_rest, kind=kind))
+            added.append(add(obj, location, on_rest=on_rest, kind=kind, notes=notes))
     except RigError:
         if added:
             remove(obj, set(added))

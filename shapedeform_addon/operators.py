@@ -107,11 +107,12 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
             return {"CANCELLED"}
         given = self.properties.is_property_set("location")
         at_selection = active.mode == "EDIT" and not given
+        notes = []
         try:
             # Leaving Edit Mode writes the selection into the data.
             with _in_object_mode(active):
                 added = handles.add_all(obj, self._locations(context, active, obj, given, at_selection),
-                                        kind=self.kind, on_rest=at_selection)
+                                        kind=self.kind, on_rest=at_selection, notes=notes)
                 rig.pose_safely(obj, context.evaluated_depsgraph_get())
         except RigError as err:
             self.report({"ERROR"}, str(err))
@@ -122,6 +123,8 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
             for empty in added:
                 empty.select_set(True)
             context.view_layer.objects.active = added[-1]
+        if notes:
+            self.report({"WARNING"}, "; ".join(notes))
         return {"FINISHED"}
 
     def _locations(self, context, active, obj, given, at_selection):

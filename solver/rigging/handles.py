@@ -17,7 +17,7 @@ from ..binding import bind
 from .plane import affine_inverse, transform_points
 
 __all__ = ["frame_2d", "handle_matrix", "apply_affine", "invert_affine", "select_region",
-           "region_offsets", "region_targets", "rest_position", "place"]
+           "region_offsets", "region_targets", "rest_position", "place", "distance_off"]
 # Fewest graph points in a region: three points fix a patch's rotation as well as its place.
 MIN_REGION_POINTS = 3
 
@@ -193,6 +193,12 @@ def rest_position(rest_points, posed_points, triangles, query):
     posed = SimpleNamespace(points=np.asarray(posed_points, dtype=np.float64),
                             triangles=np.asarray(triangles, dtype=np.int64), n=len(posed_points))
     return bind(posed, np.asarray(query, dtype=np.float64).reshape(-1, 2)).apply(rest_points)
+
+
+def distance_off(points, point):
+    """How far ``point`` (2,) lies from the nearest of ``points`` (n, 2): 0 on a graph point,
+    about the spacing inside the shape, more off it."""
+    return float(np.min(np.linalg.norm(np.asarray(points, dtype=np.float64) - point, axis=1)))
 
 
 def place(plane, space, location, rest_points, posed_points, triangles, on_rest=False):

@@ -189,3 +189,15 @@ def test_a_hidden_object_in_edit_mode_is_unbound_without_a_traceback(addon):
     obj.hide_viewport = True
     assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
     assert not obj.shapedeform.is_bound and obj.mode == "OBJECT"
+
+
+def test_a_handle_added_off_the_shape_says_it_holds_the_nearest_part_at_a_distance(addon, capsys):
+    """The 3D cursor left far from the shape: the handle is added there (a lever on the nearest
+    part, as before) and the status bar says so; one on the shape says nothing."""
+    obj, _, _ = rig_with_two_handles()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.0, 3.0, 0.0])) == {"FINISHED"}
+    assert "of the shape's size off it: it holds the nearest part at a distance" in capsys.readouterr().out
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.0, 0.0, 0.0])) == {"FINISHED"}
+    assert "off it" not in capsys.readouterr().out
