@@ -60,6 +60,13 @@ def _points(drawing):
     return read_vectors(attribute, count) if count else np.empty((0, 3), np.float32)
 
 
+def _stroke_offsets(drawing):
+    """(s + 1,) int64: each stroke's first point, then the point count."""
+    offsets = np.empty(len(drawing.curve_offsets), dtype=np.int64)
+    drawing.curve_offsets.foreach_get("value", offsets)
+    return offsets
+
+
 def _values(drawing, name, count, dtype, default):
     attribute = drawing.attributes.get(name)
     values = np.full(count, default, dtype=dtype)
@@ -82,8 +89,8 @@ def stroke_order_losses(obj):
     a Build modifier after the rig's, which times strokes from their keyframe, draws nothing.
     """
     layers = list(obj.data.layers)
-    ours = [k for k, m in enumerate(obj.modifiers) if m in modifiers_of(obj)]
-    later = [m for m in obj.modifiers[ours[0] + 1:] if m.type == "GREASE_PENCIL_BUILD"] if ours else []
+    stack, ours = list(obj.modifiers), modifiers_of(obj)
+    later = [m for m in stack[stack.index(ours[0]) + 1:] if m.type == "GREASE_PENCIL_BUILD"] if ours else []
     checks = (
         ("lights on", [layer for layer in layers if layer.use_lights] if obj.use_grease_pencil_lights else []),
         ("onion skins of", [layer for layer in layers if layer.use_onion_skinning and len(layer.frames) > 1]),
@@ -111,11 +118,10 @@ def prepare(obj, settings):
     for _, frame in frames:
         drawing = frame.drawing
         points = _points(drawing)
-        curve_offsets = np.empty(len(drawing.curve_offsets), dtype=np.int32)
-        drawing.curve_offsets.foreach_get("value", curve_offsets)
+        curve_offsets = _stroke_offsets(drawing)
         strokes = len(curve_offsets) - 1
         rests.append(points)
-        offsets.append(curve_offsets[1:].astype(np.int64) + start)
+        offsets.append(curve_offsets[1:] + start)
         radii.append(_values(drawing, "radius", len(points), np.float32, 0.0))
         # Blender fills a stroke whether or not it is closed (see compat.filled_strokes).
         material = np.clip(_values(drawing, "material_index", strokes, np.int32, 0), 0, len(fills) - 1)
@@ -212,8 +218,7 @@ def selected(obj):
             continue
         drawing = frame.drawing
         points = _points(drawing)
-        offsets = np.empty(len(drawing.curve_offsets), dtype=np.int64)
-        drawing.curve_offsets.foreach_get("value", offsets)
+        offsets = _stroke_offsets(drawing)
         strokes = len(offsets) - 1
         material = np.clip(_values(drawing, "material_index", strokes, np.int32, 0), 0, len(hidden) - 1)
         frozen = hidden[material] | (locked[material] & (not layer.ignore_locked_materials))
