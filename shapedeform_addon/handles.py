@@ -44,6 +44,13 @@ def parent_space(handle):
     return np.eye(4)
 
 
+def set_active(settings, index):
+    """Make item ``index`` the list's active handle without selecting its Empty: only a pick in
+    the sidebar's list selects (the property's update), not the add-on's own bookkeeping, which
+    may run inside another mode's operator."""
+    settings["active_handle"] = max(int(index), 0)
+
+
 def collection(obj):
     """The collection of ``obj``'s rig (handles and cage), made when missing."""
     settings = obj.shapedeform
@@ -130,7 +137,7 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     item.object = empty
     item[rig_format.HANDLE_INDICES] = region.astype(np.int32)
     item[rig_format.HANDLE_OFFSETS] = offsets.ravel()
-    settings.active_handle = len(settings.handles) - 1
+    set_active(settings, len(settings.handles) - 1)
     rigs.invalidate(obj)
     return empty
 
@@ -163,7 +170,7 @@ def _add_pin(obj, rig, point, kind):
     item = obj.shapedeform.handles.add()
     item.object = empty
     item[rig_format.PIN_POINT] = point
-    obj.shapedeform.active_handle = len(obj.shapedeform.handles) - 1
+    set_active(obj.shapedeform, len(obj.shapedeform.handles) - 1)
     rigs.invalidate(obj)
     return empty
 
@@ -197,7 +204,7 @@ def adopt_duplicated(obj):
         if not owns(obj, settings.handles[i].object):
             settings.handles.remove(i)
     settings.cage = cage
-    settings.active_handle = min(settings.active_handle, len(settings.handles) - 1)
+    set_active(settings, min(settings.active_handle, len(settings.handles) - 1))
     rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage, nodes.HANDLES_INPUT: home})
     return True
 
@@ -306,7 +313,7 @@ def remove(obj, empties):
                 if owns(obj, empty):
                     bpy.data.objects.remove(empty)
                 removed += 1
-    settings.active_handle = min(settings.active_handle, max(len(settings.handles) - 1, 0))
+    set_active(settings, min(settings.active_handle, max(len(settings.handles) - 1, 0)))
     rigs.invalidate(obj)
     return removed
 

@@ -47,6 +47,22 @@ def _pin_changed(self, context):
         rig.pose_safely(owner, context.evaluated_depsgraph_get())
 
 
+def _handle_picked(self, context):
+    """A handle picked in the sidebar's list: its Empty selected and active, as a click in the
+    Outliner makes it (in Object Mode; other modes keep their object). The add-on's own changes
+    of the index go around this (:func:`.handles.set_active`)."""
+    if context.mode != "OBJECT" or not 0 <= self.active_handle < len(self.handles):
+        return
+    empty = self.handles[self.active_handle].object
+    view_layer = context.view_layer
+    if empty is None or view_layer.objects.get(empty.name) != empty or not empty.visible_get(view_layer=view_layer):
+        return
+    for other in context.selected_objects:
+        other.select_set(False)
+    empty.select_set(True)
+    view_layer.objects.active = empty
+
+
 def _pin_reach_changed(self, context):
     """A pin's extent or stiffness changed: rebuild its rig's deformer and pose again."""
     owner = self.rig
@@ -79,7 +95,7 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
     kind: StringProperty(name="Kind", description="What was rigged: MESH, IMAGE, CURVE or GREASEPENCIL",
                           options=NOT_KEYABLE)
     handles: CollectionProperty(type=SHAPEDEFORM_PG_handle, name="Handles")
-    active_handle: IntProperty(name="Active Handle", default=0, min=0, options=NOT_KEYABLE)
+    active_handle: IntProperty(name="Active Handle", default=0, min=0, options=NOT_KEYABLE, update=_handle_picked)
     handle_collection: PointerProperty(type=bpy.types.Collection, name="Handle Collection")
     original_data: PointerProperty(type=bpy.types.Mesh, name="Original Mesh",
                                    description="An image plane's quad, given back on unbind")

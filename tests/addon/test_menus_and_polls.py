@@ -109,6 +109,28 @@ def test_the_lists_remove_button_removes_its_active_handle_not_the_selection(add
             bpy.ops.shapedeform.remove_handle(handle=name)
 
 
+def test_picking_a_handle_in_the_list_selects_its_empty_in_object_mode_only(addon):
+    obj, left, right = rig_with_two_handles()
+    view_layer = bpy.context.view_layer
+    checks.select_only(obj)
+    view_layer.objects.active = obj
+    obj.shapedeform.active_handle = 0  # a click in the list
+    assert view_layer.objects.active == left and left.select_get() and not obj.select_get()
+    obj.shapedeform.active_handle = 1  # the list stays: the Empty belongs to the same rig
+    assert view_layer.objects.active == right and right.select_get() and not left.select_get()
+
+    view_layer.objects.active = obj
+    bpy.ops.object.mode_set(mode="EDIT")
+    obj.shapedeform.active_handle = 0
+    assert view_layer.objects.active == obj and obj.mode == "EDIT"
+    bpy.ops.mesh.select_all(action="DESELECT")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    obj.data.vertices[0].select = True
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}  # its own index change selects nothing
+    assert view_layer.objects.active == obj and obj.mode == "EDIT" and obj.shapedeform.active_handle == 2
+
+
 def test_rig_state_offers_no_keyframes_but_the_energy_and_pins_do(addon):
     properties = bpy.types.Object.bl_rna.properties["shapedeform"].fixed_type.properties
     for name in ("is_bound", "kind", "active_handle", "pin_kind", "graph_mode", "density", "region_size",
