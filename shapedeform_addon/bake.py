@@ -148,6 +148,7 @@ class Bake:
         if not self.objects:
             raise RigError("Nothing to bake: no bound objects were given")
         for obj in self.objects:
+            rig_format.require_posable(obj, "bake it")
             settings = obj.shapedeform
             if settings.cage is None:
                 raise RigError(f"'{obj.name}' has no cage (its rig was removed, or an older version bound it): "
@@ -415,6 +416,12 @@ class SHAPEDEFORM_OT_clear_bake(bpy.types.Operator):
         targets = _targets(context)
         if not targets:
             self.report({"ERROR"}, "Select bound objects to clear their bake")
+            return {"CANCELLED"}
+        try:
+            for obj in targets:
+                rig_format.require_posable(obj, "clear its bake")
+        except RigError as err:
+            self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
         for obj in targets:
             clear(obj)

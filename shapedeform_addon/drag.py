@@ -264,6 +264,17 @@ def _window_region(context):
     return region, area.spaces.active.region_3d
 
 
+def _refusal(obj):
+    """Why the rig ``obj`` (from :func:`~.rig_format.active_rig`) cannot be dragged, or ""."""
+    if obj is None:
+        return "Select a bound object or one of its handles to drag"
+    try:
+        rig_format.require_posable(obj, "drag its handles")
+    except RigError as err:
+        return str(err)
+    return ""
+
+
 class SHAPEDEFORM_OT_drag(bpy.types.Operator):
     """Drag a handle of the active rig with the mouse (Ctrl+click pins the shape anywhere)"""
 
@@ -273,13 +284,12 @@ class SHAPEDEFORM_OT_drag(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return poll_reason(cls, "Select a bound object or one of its handles to drag"
-                           if rig_format.active_rig(context) is None else "")
+        return poll_reason(cls, _refusal(rig_format.active_rig(context)))
 
     def invoke(self, context, event):
         obj = rig_format.active_rig(context)
-        if obj is None:
-            self.report({"ERROR"}, "Select a bound object or one of its handles to drag")
+        if _refusal(obj):
+            self.report({"ERROR"}, _refusal(obj))
             return {"CANCELLED"}
         region, region_3d = _window_region(context)
         if region is None or region_3d is None:

@@ -326,11 +326,22 @@ def rig_to_object(obj):
 def require_local(obj, action):
     """Raise RigError when ``obj``'s rig is a library's (linked, or a library override, whose
     handle list and collections the library holds): ``action`` (a phrase) is done there."""
-    if obj.library is None and obj.override_library is None:
+    require_posable(obj, action)
+    if obj.override_library is None:
         return
-    library = obj.library or obj.override_library.reference.library
-    raise RigError(f"'{obj.name}' comes from the library '{library.name}': {action} in that file "
-                   "(here its handles move and key, and it bakes)")
+    raise RigError(f"'{obj.name}' comes from the library '{obj.override_library.reference.library.name}': "
+                   f"{action} in that file (here its handles move and key, and it bakes)")
+
+
+def require_posable(obj, action):
+    """Raise RigError when ``obj`` is linked from a library without an override: nothing in
+    this file can move its handles or keep what is written into its cage (Blender drops edits
+    of linked data on saving). ``action`` is a phrase: "bake it"."""
+    if obj.library is None:
+        return
+    raise RigError(f"'{obj.name}' comes from the library '{obj.library.name}' without a library override: "
+                   f"{action} in that file, or make a library override of it here (Object > Library "
+                   "Override) to move its handles, key them and bake")
 
 
 def is_baked(obj):

@@ -1144,6 +1144,41 @@ def test_a_linked_character_instanced_in_a_shot_is_left_as_the_library_has_it(ad
     np.testing.assert_allclose(instanced_points(obj), posed, atol=1e-5)
 
 
+def test_a_character_linked_without_an_override_refuses_what_would_be_lost(addon, tmp_path, capfd):
+    """Linked straight into a shot's scene, with no library override, a rig's cage and handles
+    are the library's: Blender drops edits of them on saving. Bake, Clear Bake, Drag and the
+    command line's ``--objects`` refuse it by name and say how to animate it here (the bake
+    reported success and the saved shot played no bake; a drag said it keyed a handle that
+    Blender would not key)."""
+    character, obj = character_collection(tmp_path)
+    rig = Rigged(obj)
+    rig.move(0.5)
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    with bpy.data.libraries.load(library, link=True) as (_, linked):
+        linked.collections = ["Character"]
+    bpy.context.scene.collection.children.link(linked.collections[0])
+    obj = bpy.data.objects["Grid"]
+    assert obj.library is not None and obj.override_library is None
+    bpy.context.view_layer.objects.active = obj
+    obj.select_set(True)
+    refusal = "comes from the library 'character.blend' without a library override"
+    for refused in (lambda: bpy.ops.shapedeform.bake(frame_start=1, frame_end=3),
+                    lambda: bpy.ops.shapedeform.clear_bake(),
+                    lambda: bpy.ops.shapedeform.drag("INVOKE_DEFAULT"),
+                    lambda: bpy.ops.shapedeform.unbind()):
+        with pytest.raises(RuntimeError, match=refusal):
+            refused()
+    assert not bpy.ops.shapedeform.drag.poll()
+    path = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    capfd.readouterr()
+    assert addon.shapedeform_addon.cli.main(["bake", "--frames", "1-3", "--objects", "Grid"]) == 1
+    assert refusal in capfd.readouterr().err
+
+
 def test_binding_an_object_given_another_rigs_modifier_gives_it_its_own(addon, tmp_path, quiet):
     """Copy Modifiers from a rigged object to another, then Bind that one: it has one Shape
     Deform modifier, its own, and rests until its own handles move (the copied modifier stayed
