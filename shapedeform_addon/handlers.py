@@ -31,24 +31,29 @@ def paused():
         _busy = was
 
 
-# The status bar shows our message until we clear it: whether one is up.
-_status_shown = False
+# The status bar shows our text until we clear it: what we last showed ("" for nothing).
+_status_text = ""
 
 
 def _report(messages):
     """Show why updates failed in the status bar, or, once they work again, clear what an
-    earlier failure showed (and nothing else's text)."""
-    global _status_shown
-    if not messages and not _status_shown:
+    earlier failure showed (and nothing else's text). While any failure shows, the text is
+    every failing rig's of the scene (each owner keeps its reason in ``shapedeform.status``),
+    so a rig that works does not hide another that still fails."""
+    global _status_text
+    if not any(messages) and not _status_text:
         return
     workspace = getattr(bpy.context, "workspace", None)
     if workspace is None:
         return  # no window (headless): the owner's status property still says why
+    scene = bpy.context.scene
+    failing = [o.shapedeform.status for o in rig_format.owners(scene)] if scene is not None else []
+    text = "; ".join(dict.fromkeys(m for m in list(messages) + failing if m))
     try:
-        workspace.status_text_set("; ".join(dict.fromkeys(messages)) or None)
+        workspace.status_text_set(text or None)
     except (AttributeError, RuntimeError):
         return
-    _status_shown = bool(messages)
+    _status_text = text
 
 
 def _pose(objects, depsgraph, final=None):

@@ -162,13 +162,17 @@ def test_the_status_bar_message_of_a_failed_update_goes_once_updates_work(addon)
     if getattr(bpy.context, "workspace", None) is None:
         pytest.skip("no workspace to show a status bar message")
     obj, left, _ = rig_with_two_handles()
+    other, _, other_right = rig_with_two_handles()
     y = left.location.y
     left.location.y = float("nan")  # a driver gone wrong: the update fails, the pose stays
     bpy.context.view_layer.update()
-    assert obj.shapedeform.status and handlers._status_shown
+    assert obj.shapedeform.status and obj.name in handlers._status_text
+    other_right.location.y += 0.1  # another rig works: the failure still shows
+    bpy.context.view_layer.update()
+    assert not other.shapedeform.status and obj.name in handlers._status_text
     left.location.y = y + 0.1
     bpy.context.view_layer.update()
-    assert not obj.shapedeform.status and not handlers._status_shown
+    assert not obj.shapedeform.status and handlers._status_text == ""
 
 
 def test_deleting_a_handles_empty_removes_the_handle(addon):
