@@ -373,6 +373,8 @@ def owners(scene):
         if collection is not None and collection.session_uid not in seen:
             seen.add(collection.session_uid)  # an instance cycle ends here
             objects.extend(collection.all_objects)
+        if not obj.shapedeform.is_bound:  # most of a big scene: one property read (every frame)
+            continue
         owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
         if _posable_owner(owner):
             found.append(owner)
