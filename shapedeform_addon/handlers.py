@@ -113,12 +113,14 @@ def on_depsgraph_update(scene, depsgraph):
         handles.settle_duplicate(obj)
         if rig_format.is_owner(obj) and rig.stale(obj):  # a setting driven or keyed, edited
             moved[obj.name] = obj
-        if not update.is_updated_transform:
-            continue
         owner = handles.rig_of(obj)
-        # Position handles only: pins ride on the cage (vertex parents), so their moves come
-        # from the pose, and posing again for them would never settle.
-        if owner is not None and obj.type == "EMPTY" and obj.shapedeform.pin_kind == "POSITION":
+        if owner is None or obj.type != "EMPTY":
+            continue
+        # Pins ride on the cage (vertex parents), so their moves come from the pose, and posing
+        # again for them would never settle: only their amounts (driven, or a key edited at
+        # this frame) pose again.
+        if obj.shapedeform.pin_kind == "POSITION" and update.is_updated_transform or \
+                obj.shapedeform.pin_kind != "POSITION" and rig.stale(owner):
             moved[owner.name] = owner
     _pose(list(moved.values()), depsgraph)
 

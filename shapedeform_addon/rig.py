@@ -14,6 +14,10 @@ reloading, and a rebuilt rig skips making them again (most of a rebuild's time).
 
 A rig remembers its last solve: a frame whose handles give the same targets (a rig nobody
 animated, during playback) reuses it, since a pose depends on its targets alone.
+
+Settings an animator may key or drive (energy weights, budgets, pin amounts) are read where the
+depsgraph being posed keeps them (:func:`_animated`): a render's depsgraph holds the frame's
+values in its evaluated copies only.
 """
 
 import bpy
@@ -33,7 +37,7 @@ _coarse_copies = solver.CoarseCopies(kept=32)
 class Rig:
     """Solver objects of one rig owner, rebuilt from its stored data."""
 
-    def __init__(self, obj):
+    def __init__(self, obj, depsgraph=None):
         if rig_format.is_legacy(obj):
             raise RigError(f"'{obj.name}' was bound by an older version of Shape Deform; "
                            "unbind it (its rest shape comes back) and bind it again")
@@ -51,11 +55,12 @@ class Rig:
         self.offsets = np.concatenate([o for _, _, o in items]) if items else np.empty((0, 2))
         self.owners = np.concatenate([np.full(len(i), k) for k, (_, i, _) in enumerate(items)]) \
             if items else np.empty(0, np.int64)
-        weights = {"laplacian": settings.weight_laplacian, "mvc": settings.weight_mvc, "edge": settings.weight_edge}
-        stiffness = self._stiffness(obj)
+        values = _animated(obj, depsgraph).shapedeform
+        weights = {"laplacian": values.weight_laplacian, "mvc": values.weight_mvc, "edge": values.weight_edge}
+        stiffness = self._stiffness(obj, depsgraph)
         try:
-            self.deformer = solver.Deformer(self.graph, self.indices, weights, settings.preserve_area,
-                                            prevent_flips=settings.prevent_flips,
+            self.deformer = solver.Deformer(self.graph, self.indices, weights, values.preserve_area,
+                                            prevent_flips=values.prevent_flips,
                                             coarse_copies=self.coarse_copies, stiffness=stiffness) \
                 if len(self.indices) else None
         except solver.UncoveredPoints as err:
@@ -68,9 +73,9 @@ class Rig:
         self.overlap_pins = [empty for empty, _ in overlap]
         self.overlap_reach = depth.pin_weights(
             self.graph.points, self.graph.edges, [point for _, point in overlap],
-            [empty.shapedeform.extent * self.graph.size for empty, _ in overlap])
+            [_animated(empty, depsgraph).shapedeform.extent * self.graph.size for empty, _ in overlap])
         self.in_front = np.zeros(len(overlap))
-        self.signature = signature(obj)
+        self.signature = signature(obj, depsgraph)
         # The pose shown (the cage's, as saved or last written): graph positions (n, 2) and the
         # cage's points (n, 3) in rig space, lifted where it overlaps itself; and whether it is
         # what a render gives (converged, or solved with the Render budget).
@@ -105,19 +110,18 @@ class Rig:
         self._last_solve = (iterations, targets.tobytes(), solution.positions.copy(), solution.converged)
         return solution.positions
 
-    def _stiffness(self, obj):
+    def _stiffness(self, obj, depsgraph=None):
         """Per graph point, 1 plus each starch pin's stiffness times its reach; None without pins.
         Keeps the pins' reach (``starch_reach``, (k, n)) and amounts (``starch``, (k,))."""
-        pins = rig_format.pin_items(obj, "STARCH")
+        pins = [(_animated(empty, depsgraph).shapedeform, point) for empty, point in rig_format.pin_items(obj, "STARCH")]
         self.starch_reach = depth.pin_weights(self.graph.points, self.graph.edges, [point for _, point in pins],
-                                              [empty.shapedeform.extent * self.graph.size for empty, _ in pins])
-        self.starch = np.array([empty.shapedeform.stiffness for empty, _ in pins], dtype=np.float64)
+                                              [pin.extent * self.graph.size for pin, _ in pins])
+        self.starch = np.array([pin.stiffness for pin, _ in pins], dtype=np.float64)
         return depth.stiffness(self.starch, self.starch_reach)
 
-    def read_pins(self):
-        """Take the overlap pins' current amounts (the active depsgraph writes animated values
-        back to the original Empties, and an edit in the sidebar is there before any depsgraph)."""
-        self.in_front = np.array([p.shapedeform.in_front for p in self.overlap_pins], dtype=np.float64)
+    def pin_amounts(self, depsgraph=None):
+        """The overlap pins' current amounts (k,)."""
+        return np.array([_animated(p, depsgraph).shapedeform.in_front for p in self.overlap_pins], dtype=np.float64)
 
     def cage_points(self, positions):
         """The cage's points (n, 3) float32 in rig space for graph ``positions`` (n, 2), lifted
@@ -133,35 +137,44 @@ def _weight_label(term):
     return f"'{settings.properties['weight_' + term].name}'"
 
 
-def signature(obj):
-    """What the deformer depends on besides stored data: handles, settings, and which cage it
-    writes (a cage removed or edited by hand makes the rig rebuild, which says so)."""
+def signature(obj, depsgraph=None):
+    """What the deformer depends on besides stored data: handles, settings (as ``depsgraph``
+    has them, see :func:`_animated`), and which cage it writes (a cage removed or edited by
+    hand makes the rig rebuild, which says so)."""
     s = obj.shapedeform
+    values = _animated(obj, depsgraph).shapedeform
     cage = (s.cage.session_uid, len(s.cage.data.vertices)) if s.cage is not None else None
-    return (cage, tuple((item.object.name, item.object.shapedeform.pin_kind, item.object.shapedeform.extent,
-                   item.object.shapedeform.stiffness if item.object.shapedeform.pin_kind == "STARCH" else None)
-                  if rig_format.present(item.object) else None for item in s.handles),
-            s.weight_laplacian, s.weight_mvc, s.weight_edge, s.preserve_area, s.prevent_flips)
+    return (cage, tuple(_handle_signature(item.object, depsgraph) if rig_format.present(item.object) else None
+                        for item in s.handles),
+            values.weight_laplacian, values.weight_mvc, values.weight_edge, values.preserve_area, values.prevent_flips)
 
 
-def get(obj):
-    """The :class:`Rig` of ``obj``'s rig owner, built if missing or stale; RigError if it cannot be."""
+def _handle_signature(empty, depsgraph):
+    pin = _animated(empty, depsgraph).shapedeform
+    return empty.name, pin.pin_kind, pin.extent, pin.stiffness if pin.pin_kind == "STARCH" else None
+
+
+def get(obj, depsgraph=None):
+    """The :class:`Rig` of ``obj``'s rig owner, built if missing or stale (for the settings
+    ``depsgraph`` has); RigError if it cannot be."""
     owner = rig_format.owner_of(obj.original)
     if owner is None:
         raise RigError(f"'{obj.name}' is not bound")
     rig = _cache.get(owner.session_uid)
-    if rig is None or rig.signature != signature(owner):
-        rig = Rig(owner)
+    if rig is None or rig.signature != signature(owner, depsgraph):
+        rig = Rig(owner, depsgraph)
         _cache[owner.session_uid] = rig
     return rig
 
 
 def stale(obj):
-    """Whether the cached rig of owner ``obj`` no longer fits its handles or settings (a driver
-    or keyed value can change them without any update callback). A rig not cached (none built
-    yet, or dropped by undo) is not stale: it is built when something poses it."""
+    """Whether the cached rig of owner ``obj`` no longer fits its handles, settings or overlap
+    pins' amounts (a driver or keyed value can change them without any update callback). A rig
+    not cached (none built yet, or dropped by undo) is not stale: it is built when something
+    poses it."""
     cached = _cache.get(obj.original.session_uid)
-    return cached is not None and cached.signature != signature(obj.original)
+    return cached is not None and (cached.signature != signature(obj.original)
+                                   or not np.array_equal(cached.in_front, cached.pin_amounts()))
 
 
 def invalidate(obj):
@@ -182,6 +195,13 @@ def forget(obj=None):
 
 def _evaluated(obj, depsgraph):
     return obj.evaluated_get(depsgraph) if depsgraph is not None else obj
+
+
+def _animated(obj, depsgraph):
+    """Where ``obj``'s keyable settings are read: the original (the active depsgraph writes a
+    frame's animated values back to it, and a sidebar edit is there before any depsgraph has
+    seen it), or, for a render's depsgraph (which writes nothing back), its evaluated copy."""
+    return obj.evaluated_get(depsgraph) if depsgraph is not None and depsgraph.mode == "RENDER" else obj
 
 
 def _relative(obj, space):
@@ -225,13 +245,14 @@ def pose(obj, depsgraph=None, final=None):
     owner = rig_format.owner_of(obj.original)
     if owner is not None and owner.shapedeform.cage is not None:
         rig_format.follow_library_cage(owner.shapedeform.cage)  # here, never while drawing
-    rig = get(obj)
+    rig = get(obj, depsgraph)
     frames = rig.frames(owner, depsgraph)
     settings = owner.shapedeform
+    budgets = _animated(owner, depsgraph).shapedeform
     final = final_quality() if final is None else final
-    rig.read_pins()
+    rig.in_front = rig.pin_amounts(depsgraph)
     try:
-        positions = rig.solve(frames, settings.render_iterations if final else settings.iterations)
+        positions = rig.solve(frames, budgets.render_iterations if final else budgets.iterations)
         points = rig.cage_points(positions)
     except (ValueError, np.linalg.LinAlgError, FloatingPointError) as err:
         raise RigError(f"'{owner.name}': {err}") from None

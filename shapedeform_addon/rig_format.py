@@ -365,9 +365,15 @@ def owners(scene):
     that is itself instanced), and the owners of the duplicates following a rig it shows (a
     copy moved to another scene poses there with its rig's handles, which its modifier has
     Blender evaluate wherever it is). Linked rigs (library data without an override) are left
-    out: nothing here can pose them (a bake in their own file can)."""
+    out: nothing here can pose them (a bake in their own file can). The scenes ``scene`` shows
+    as its Background Set, and theirs, are shown too."""
     found, seen = [], set()
-    objects = list(scene.objects)
+    objects, shown = list(scene.objects), {scene.session_uid}
+    backdrop = scene.background_set
+    while backdrop is not None and backdrop.session_uid not in shown:
+        shown.add(backdrop.session_uid)
+        objects.extend(backdrop.objects)
+        backdrop = backdrop.background_set
     for obj in objects:  # grows with the objects of each instanced collection, in scene order
         collection = obj.instance_collection if obj.instance_type == "COLLECTION" else None
         if collection is not None and collection.session_uid not in seen:

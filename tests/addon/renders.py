@@ -76,6 +76,23 @@ def render(path, engine="BLENDER_WORKBENCH", size=160, samples=8, color_type="MA
     return pixels.reshape(size, size, 4)
 
 
+def animation_frame(frame, folder, name, size=48):
+    """Render ``frame`` as Render Animation does on a farm (from frame 1: the render sets and
+    evaluates the frame itself, in a depsgraph of its own) with :func:`render`'s settings, and
+    return its pixels, (size, size, 4)."""
+    scene = bpy.context.scene
+    scene.frame_set(1)
+    scene.frame_start = scene.frame_end = frame
+    render(folder / "settings.png", size=size)  # the engine and its settings
+    scene.render.filepath = str(folder / f"{name}_")
+    bpy.ops.render.render(animation=True)
+    image = bpy.data.images.load(str(folder / f"{name}_{frame:04d}.png"))
+    pixels = np.empty(size * size * 4, np.float32)
+    image.pixels.foreach_get(pixels)
+    bpy.data.images.remove(image)
+    return pixels.reshape(size, size, 4)
+
+
 def pixel_centres(camera, size):
     """World (x, y) at the centre of each pixel of an orthographic camera's render, (size, size, 2)."""
     width = camera.data.ortho_scale

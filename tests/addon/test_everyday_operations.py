@@ -799,21 +799,6 @@ def test_one_update_shows_the_pose_whatever_else_changed(addon, edit, quiet):
 
 # -- the handles' collection hidden -------------------------------------------------------------
 
-def _render_frame(frame, tmp_path, name):
-    """Render ``frame`` as an animation of one frame (as a farm does: the frame is set, and
-    evaluated, by the render), from frame 1, and return its pixels."""
-    scene = bpy.context.scene
-    scene.frame_set(1)
-    scene.frame_start = scene.frame_end = frame
-    renders.render(tmp_path / "still.png", size=48)  # the engine and its settings
-    scene.render.filepath = str(tmp_path / f"{name}_")
-    bpy.ops.render.render(animation=True)
-    image = bpy.data.images.load(str(tmp_path / f"{name}_{frame:04d}.png"))
-    pixels = np.array(image.pixels[:], dtype=np.float32)
-    bpy.data.images.remove(image)
-    return pixels
-
-
 @pytest.mark.parametrize("hide", ["hide_viewport", "exclude", "hide_render"])
 def test_handles_drive_the_shape_wherever_their_collection_is_hidden(addon, hide, tmp_path, quiet):
     """Hiding the rig's "<name> Handles" collection (disabled in viewports, excluded from the
@@ -834,9 +819,9 @@ def test_handles_drive_the_shape_wherever_their_collection_is_hidden(addon, hide
     collection = obj.shapedeform.handle_collection
     if hide == "hide_render":
         renders.camera_over((0.0, 0.0), 3.0)
-        seen = _render_frame(6, tmp_path, "shown")
+        seen = renders.animation_frame(6, tmp_path, "shown")
         collection.hide_render = True
-        np.testing.assert_array_equal(_render_frame(6, tmp_path, "hidden"), seen)
+        np.testing.assert_array_equal(renders.animation_frame(6, tmp_path, "hidden"), seen)
         return
     if hide == "exclude":
         bpy.context.view_layer.layer_collection.children[collection.name].exclude = True
@@ -1177,6 +1162,34 @@ def test_a_character_linked_without_an_override_refuses_what_would_be_lost(addon
     capfd.readouterr()
     assert addon.shapedeform_addon.cli.main(["bake", "--frames", "1-3", "--objects", "Grid"]) == 1
     assert refusal in capfd.readouterr().err
+
+
+def test_a_rig_in_a_background_set_follows_its_keys_in_the_scene_it_shows_in(addon, tmp_path, quiet):
+    """Characters kept in a scene of their own, shown in the shot as its Background Set: the
+    shot's frames pose them, in the viewport and in a render (they stayed at the pose of the
+    last frame their own scene was at)."""
+    obj = make_mesh(tmp_path)
+    rig = Rigged(obj)
+    characters = bpy.context.scene
+    rig.second.keyframe_insert("location", frame=1)
+    rig.move(0.5)
+    rig.second.keyframe_insert("location", frame=5)
+    characters.frame_set(5)
+    expected = evaluated(obj).copy()
+    characters.frame_set(1)
+    rest = evaluated(obj).copy()
+    assert np.abs(expected - rest).max() > 0.3
+
+    shot = bpy.data.scenes.new("Shot")
+    shot.background_set = characters
+    bpy.context.window.scene = shot
+    shot.frame_set(5)
+    np.testing.assert_allclose(evaluated(obj), expected, atol=1e-5)
+    camera = renders.camera_over((0.0, 0.0), 3.0)
+    shot.frame_set(5)
+    still = renders.render(tmp_path / "still.png", size=48)
+    np.testing.assert_array_equal(renders.animation_frame(5, tmp_path, "farm"), still)
+    bpy.data.objects.remove(camera)
 
 
 def test_binding_an_object_given_another_rigs_modifier_gives_it_its_own(addon, tmp_path, quiet):

@@ -167,6 +167,54 @@ def test_overlap_pins_put_the_pinned_part_in_front_or_behind_and_key_between(add
     assert render_overlap(obj, arm, tmp_path, "keyed10", engine)[0] >= 0.97  # in front of it
 
 
+def test_render_animation_and_drivers_follow_an_overlap_pins_amount(addon, tmp_path):
+    """Keyed behind at frame 9 and in front at frame 10, a pinned hand renders in front at
+    frame 10 of Render Animation, as a farm runs it (a render's depsgraph keeps the frame's
+    amount in its evaluated copies only: the hand rendered at the amount of the frame the render
+    started from). Driven, the amount poses at once (it waited for the next frame change)."""
+    obj, arm = figure()
+    swing_arm_across(obj)
+    scene = bpy.context.scene
+    scene.frame_set(10)
+    rest = checks.mesh_points(obj)
+    hand = int(np.argmin(np.linalg.norm(rest[:, :2] - [1.4, 0.65], axis=1)))
+    bpy.context.view_layer.objects.active = obj
+    location = tuple(checks.evaluated_mesh_points(obj)[hand])
+    assert bpy.ops.shapedeform.add_handle(location=location, kind="OVERLAP") == {"FINISHED"}
+    pin = obj.shapedeform.handles[-1].object
+    pin.shapedeform.extent = 0.3
+    pin.shapedeform.in_front = -1.0
+    pin.keyframe_insert("shapedeform.in_front", frame=9)
+    pin.shapedeform.in_front = 1.0
+    pin.keyframe_insert("shapedeform.in_front", frame=10)
+    camera = renders.camera_over((0.4, 0.0), 2.6)
+    pixels = renders.animation_frame(10, tmp_path, "farm", size=SIZE)
+    scene.frame_set(10)
+    arm_share, torso_share = part_shares(obj, forearm(obj, arm), camera, pixels, ~arm)
+    assert arm_share >= 0.97, f"frame 10 of an animation render: arm {arm_share:.3f}, torso {torso_share:.3f}"
+
+    pin.animation_data_clear()
+    pin.shapedeform.in_front = 1.0
+    in_front = checks.evaluated_mesh_points(obj)[hand, 2]
+    pin.shapedeform.in_front = -1.0
+    behind = checks.evaluated_mesh_points(obj)[hand, 2]
+    assert in_front > behind
+    control = bpy.data.objects.new("Control", None)
+    scene.collection.objects.link(control)
+    control.location.x = -1.0
+    driver = pin.driver_add("shapedeform.in_front").driver
+    driver.type = "AVERAGE"
+    variable = driver.variables.new()
+    variable.type = "TRANSFORMS"
+    variable.targets[0].id = control
+    variable.targets[0].transform_type = "LOC_X"
+    bpy.context.view_layer.update()
+    control.location.x = 1.0  # the slider a driver reads
+    bpy.context.view_layer.update()
+    assert pin.shapedeform.in_front == 1.0
+    assert checks.evaluated_mesh_points(obj)[hand, 2] == pytest.approx(in_front, abs=1e-6)
+
+
 def stroke_heights(obj, layer, normal):
     """Mean height along ``normal`` of each stroke of a layer's evaluated drawing, in its order."""
     geometry = evaluated_geometry(obj)  # owns the drawing: keep it while reading

@@ -77,6 +77,33 @@ def test_a_starch_pin_halves_the_bend_inside_its_extent_and_its_amount_keys(addo
     assert turning(rest, at_two, middle) < 0.5 * plain
 
 
+def test_render_animation_renders_each_frames_keyed_stiffness(addon, tmp_path):
+    """Render Animation, as a farm runs it, poses frame 2 with frame 2's keyed stiffness, as a
+    still render of that frame does (the render's depsgraph keeps the frame's value in its
+    evaluated copies only: the bar rendered as stiff as at the frame the render started from)."""
+    import renders
+
+    obj, end = bar()
+    curl(end)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.add_handle(location=(0.0, 0.0, 0.0), kind="STARCH") == {"FINISHED"}
+    pin = obj.shapedeform.handles[-1].object
+    pin.shapedeform.extent = 0.25
+    pin.shapedeform.stiffness = 0.0
+    pin.keyframe_insert("shapedeform.stiffness", frame=1)
+    pin.shapedeform.stiffness = 30.0
+    pin.keyframe_insert("shapedeform.stiffness", frame=2)
+    renders.camera_over((0.0, 1.0), 9.0)
+    scene = bpy.context.scene
+    still = {}
+    for frame in (1, 2):
+        scene.frame_set(frame)
+        still[frame] = renders.render(tmp_path / f"still{frame}.png", size=96)
+    assert np.mean(np.abs(still[1] - still[2]).max(axis=2) > 0.1) > 0.005  # the stiffness shows
+    animated = renders.animation_frame(2, tmp_path, "farm", size=96)
+    assert np.mean(np.abs(animated - still[2]).max(axis=2) > 0.1) < 1e-3
+
+
 def test_starch_pins_show_in_the_sidebar_and_overlay(addon):
     from test_ui_overlay import drawn
 
