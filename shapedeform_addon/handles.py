@@ -129,7 +129,7 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     # Matrix, not a list: a nested list would be read column by column.
     empty.matrix_basis = Matrix((cage_local @ matrix).tolist())
     empty.shapedeform.rig = obj
-    off = distance_off(rig.posed, point)
+    off = distance_off(rig.posed, graph.triangles, point)
     if notes is not None and off > radius:
         notes.append(f"'{empty.name}' is {off / graph.size:.0%} of the shape's size off it: it holds the "
                      "nearest part at a distance")

@@ -195,10 +195,20 @@ def rest_position(rest_points, posed_points, triangles, query):
     return bind(posed, np.asarray(query, dtype=np.float64).reshape(-1, 2)).apply(rest_points)
 
 
-def distance_off(points, point):
-    """How far ``point`` (2,) lies from the nearest of ``points`` (n, 2): 0 on a graph point,
-    about the spacing inside the shape, more off it."""
-    return float(np.min(np.linalg.norm(np.asarray(points, dtype=np.float64) - point, axis=1)))
+def distance_off(points, triangles, point):
+    """How far ``point`` (2,) lies from the shape that ``triangles`` (t, 3) of ``points``
+    (n, 2) cover: 0 inside it (on a face, however large), else the distance to its nearest edge."""
+    points = np.asarray(points, dtype=np.float64)
+    point = np.asarray(point, dtype=np.float64)
+    corners = points[np.asarray(triangles)]                          # (t, 3, 2)
+    starts, ends = corners, np.roll(corners, -1, axis=1)             # each triangle's edges
+    edge, to_point = ends - starts, point - starts
+    side = edge[..., 0] * to_point[..., 1] - edge[..., 1] * to_point[..., 0]
+    if np.any(np.all(side >= 0.0, axis=1) | np.all(side <= 0.0, axis=1)):  # either winding
+        return 0.0
+    length = np.maximum(np.einsum("tkc,tkc->tk", edge, edge), np.finfo(np.float64).tiny)
+    along = np.clip(np.einsum("tkc,tkc->tk", edge, to_point) / length, 0.0, 1.0)
+    return float(np.min(np.linalg.norm(starts + along[..., None] * edge - point, axis=-1)))
 
 
 def place(plane, space, location, rest_points, posed_points, triangles, on_rest=False):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import solver
-from solver.rigging.handles import (apply_affine, frame_2d, handle_matrix, invert_affine,
+from solver.rigging.handles import (apply_affine, distance_off, frame_2d, handle_matrix, invert_affine,
                                     region_offsets, region_targets, rest_position, select_region)
 from solver.rigging.plane import fit_plane
 
@@ -93,3 +93,13 @@ def test_place_finds_the_rest_point_under_a_posed_location_and_back():
         place(plane, np.diag([0.0, 1.0, 1.0, 1.0]), location, graph.points, posed, graph.triangles)
     with pytest.raises(ValueError, match="not a finite point"):
         place(plane, world, [np.inf, 0.0, 0.0], graph.points, posed, graph.triangles)
+
+
+def test_distance_off_is_zero_anywhere_on_a_face_and_measured_to_the_outline_off_it():
+    # One square of two triangles, 2 wide: its middle is far from every corner, yet on it.
+    square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
+    for triangles in ([[0, 1, 2], [0, 2, 3]], [[0, 2, 1], [0, 3, 2]]):  # either winding
+        assert distance_off(square, triangles, [1.0, 1.0]) == 0.0
+        assert distance_off(square, triangles, [1.9, 0.1]) == 0.0
+        assert distance_off(square, triangles, [3.0, 1.0]) == pytest.approx(1.0)
+        assert distance_off(square, triangles, [3.0, 3.0]) == pytest.approx(np.sqrt(2.0))
