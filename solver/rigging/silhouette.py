@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
+from scipy import ndimage
 
 from ..shapes import _polygonal_part, geometry_rings, shape_geometry
-from ..trace import trace_silhouette
+from ..trace import coverage, trace_silhouette
 
 __all__ = ["stroke_silhouette", "image_cutout", "fit_affine"]
 
@@ -115,9 +116,9 @@ def image_cutout(image, margin=1.0, level=1.0 / 255.0, tolerance=0.5):
     ValueError
         No visible pixel (see :func:`solver.trace_silhouette`).
     """
-    image = np.asarray(image)
-    rings = trace_silhouette(image, level=level, tolerance=tolerance, min_area=1.0)
-    height, width = image.shape[:2]
+    alpha = _without_dust(coverage(image), level)
+    rings = trace_silhouette(alpha, level=level, tolerance=tolerance, min_area=1.0)
+    height, width = alpha.shape
     geometry = shape_geometry(rings)
     grown = geometry.buffer(margin, join_style="mitre", mitre_limit=2.0)
     clipped = _polygonal_part(shapely.intersection(grown, shapely.box(0, 0, width, height)))
@@ -125,6 +126,19 @@ def image_cutout(image, margin=1.0, level=1.0 / 255.0, tolerance=0.5):
     if not simplified.is_empty and simplified.is_valid:
         clipped = simplified
     return [ring for island in geometry_rings(clipped) for ring in island]
+
+
+def _without_dust(alpha, level):
+    """``alpha`` (H, W) with every group of visible pixels (at or above ``level``, touching by a
+    side or a corner) that holds less ink than one opaque pixel made transparent: specks nobody
+    sees (a soft brush's or a scan's), each of which would otherwise be an island of the
+    cut-out, and of the graph."""
+    labels, count = ndimage.label(alpha >= level, structure=np.ones((3, 3), dtype=bool))
+    if count == 0:
+        return alpha
+    ink = ndimage.sum_labels(alpha, labels, index=np.arange(1, count + 1))
+    faint = np.concatenate([[False], ink < 1.0])[labels]
+    return np.where(faint, 0.0, alpha) if faint.any() else alpha
 
 
 def fit_affine(source, target):

@@ -83,6 +83,20 @@ def test_image_cutout_covers_every_visible_pixel_and_stays_in_the_picture():
     assert len(centres) > 0
 
 
+def test_image_cutout_leaves_out_dust_nobody_sees_and_keeps_a_single_opaque_pixel():
+    rng = np.random.default_rng(0)
+    image = np.zeros((120, 120, 4), np.float32)
+    yy, xx = np.mgrid[:120, :120]
+    disc = (xx - 60) ** 2 + (yy - 60) ** 2 < 30 ** 2
+    image[..., 3][disc] = 1.0
+    dust = (rng.random((120, 120)) < 0.02) & ~disc             # specks at 5/255: invisible
+    image[..., 3][dust] = 0.02
+    assert len(shapely.get_parts(shape_geometry(image_cutout(image)))) == 1
+    image[5, 5, 3] = 1.0                                      # one opaque pixel is something
+    parts = shapely.get_parts(shape_geometry(image_cutout(image)))
+    assert len(parts) == 2 and min(part.area for part in parts) >= 1.0
+
+
 def test_fit_affine_recovers_a_map():
     source = np.array([[0, 0], [1, 0], [0, 1], [1, 1.0]])
     affine = np.array([[2, 1, 3], [0, 0.5, -1], [0, 0, 1.0]])
