@@ -7,6 +7,9 @@ mesh; :func:`restore_legacy` gives them back when such a rig is unbound.
 """
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from ... import solver
 from ...solver.outline import outline_graph
@@ -51,6 +54,30 @@ def edges(mesh):
     return flat.reshape(-1, 2).astype(np.int64)
 
 
+def _welded(rest, flat, tris, mesh_edges):
+    """The mesh with vertices at one place (within 1e-6 of its size) merged, where that leaves
+    its boundary manifold: a mesh whose faces share no vertices (an OBJ import, Edge Split)
+    is one piece, not an island per face. Returns (flat points (p, 2), triangles, edges); the
+    mesh as it is when nothing merges or merging would pinch it."""
+    size = float(np.linalg.norm(np.ptp(rest, axis=0)))
+    pairs = cKDTree(rest).query_pairs(1e-6 * size, output_type="ndarray")
+    if len(pairs) == 0:
+        return flat, tris, mesh_edges
+    count, label = connected_components(
+        coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(rest), len(rest))), directed=False)
+    first = np.zeros(count, dtype=np.int64)
+    first[label[::-1]] = np.arange(len(rest))[::-1]  # each place's first vertex
+    merged = label[tris]
+    merged = merged[(merged[:, 0] != merged[:, 1]) & (merged[:, 1] != merged[:, 2]) & (merged[:, 0] != merged[:, 2])]
+    joined = np.sort(label[mesh_edges], axis=1)
+    joined = np.unique(joined[joined[:, 0] != joined[:, 1]], axis=0)
+    try:
+        boundary_loops(merged)
+    except ValueError:  # faces meeting at a corner only: kept apart, as modelled
+        return flat, tris, mesh_edges
+    return flat[first], merged, joined
+
+
 def prepare(obj, settings):
     """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
     mesh = obj.data
@@ -61,23 +88,22 @@ def prepare(obj, settings):
         plane = fit_plane(rest)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
-    flat = plane.to_2d(rest)
-    tris = triangles(mesh)
+    flat, tris, mesh_edges = _welded(rest, plane.to_2d(rest), triangles(mesh), edges(mesh))
     try:
         loops = boundary_loops(tris)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
-    on_faces = np.zeros(len(rest), dtype=bool)
+    on_faces = np.zeros(len(flat), dtype=bool)
     on_faces[tris.ravel()] = True
     mode = settings.graph_mode
     well_shaped = smallest_angles(flat, tris).min() >= OWN_GRAPH_MIN_ANGLE
     if mode == "AUTO":
-        mode = "OWN" if len(rest) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped else "OUTLINE"
+        mode = "OWN" if len(flat) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped else "OUTLINE"
     try:
         if mode == "OWN":
             if not on_faces.all():
                 raise ValueError(f"{int((~on_faces).sum())} vertices are on no face; use the Outline graph")
-            graph = solver.Graph(flat, edges(mesh), loops, tris)
+            graph = solver.Graph(flat, mesh_edges, loops, tris)
         else:
             rings = [flat[loop] for loop in loops]
             graph = outline_graph(rings, settings.density)

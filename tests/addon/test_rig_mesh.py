@@ -239,6 +239,36 @@ def _evaluated_signed_areas(obj):
     return checks.signed_areas(points, tris)
 
 
+def test_a_mesh_whose_faces_share_no_vertices_deforms_as_one_piece(addon):
+    """As an OBJ import or Edge Split leaves a mesh: every face with vertices of its own. It
+    moves as the same mesh welded does (each face was an island of its own graph, and the
+    middle of the strip did not move at all), and its data is left as it is."""
+    welded = grid("Welded")
+    unwelded = grid("Unwelded")
+    mesh = unwelded.data
+    bpy.context.view_layer.objects.active = unwelded
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="SELECT")
+    bpy.ops.mesh.edge_split(type="EDGE")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert len(mesh.vertices) == 4 * len(mesh.polygons)
+    before = checks.mesh_points(unwelded).copy()
+    poses = []
+    for obj in (welded, unwelded):
+        bpy.context.view_layer.objects.active = obj
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+        checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+        end = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+        end.location.y += 0.5
+        bpy.context.view_layer.update()
+        assert obj.shapedeform.status == ""
+        poses.append(checks.evaluated_mesh_points(obj))
+    # Each vertex of the split mesh moves as the welded mesh's vertex at its place.
+    same_place = np.linalg.norm(before[:, None] - checks.mesh_points(welded)[None], axis=2).argmin(axis=1)
+    np.testing.assert_allclose(poses[1], poses[0][same_place], atol=1e-4)
+    np.testing.assert_array_equal(checks.mesh_points(unwelded), before)
+
+
 def test_long_thin_faces_are_flagged_at_bind_and_refine_keeps_them_from_folding(addon, capfd):
     """Issue 15, item 5: slivers spanning a bent stretch keep straight edges and turn over,
     although the map under them does not fold; the modifier's Refine subdivides them first."""
