@@ -27,7 +27,9 @@ cage, nearly all of them, are found instead by Sample UV Surface, whose reverse-
 cheaper lookup: the cage gets a UV map, its rest points in the plane scaled to the unit square,
 and each point samples the cage's displacement (posed minus rest) at its own UV, which is the
 same map (barycentric in the plane, heights kept). Only the points it misses (off the outline)
-and Bezier handles take the nearest-triangle search.
+and Bezier handles take the nearest-triangle search. A point that is the cage's point of its own
+index, at its rest place (a mesh that is its own graph), takes that point's displacement instead:
+where islands of such a mesh overlap in the plane, a place alone cannot tell them apart.
 
 Grease pencil's ``Stroke Order`` draws the strokes lying on a folded-over part after the others
 in their layer: a ray from behind through the posed cage finds the lowest layer under each
@@ -47,7 +49,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 10
+VERSION = 11
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -328,20 +330,27 @@ def _set_bezier_handles(b, cage, curve, selection, left, right):
 
 
 def _map_points(b, cage, geometry, selection):
-    """Every point moved: inside the cage by its displacement sampled at the point's UV (see
-    the module docstring), elsewhere through its nearest triangle's map."""
+    """Every point moved: a point that is the cage's point of its own index (a mesh that is its
+    own graph) by that point's displacement; inside the cage by its displacement sampled at the
+    point's UV (see the module docstring); elsewhere through its nearest triangle's map."""
     group, position = b.group, cage.position
+    shift = b.math("SUBTRACT", cage.posed, position)
     displacement = b.node("GeometryNodeSampleUVSurface",
-                          {"Mesh": cage.rest, "Value": b.math("SUBTRACT", cage.posed, position),
-                           "UV Map": cage.uv(position), "Sample UV": cage.uv(position)},
+                          {"Mesh": cage.rest, "Value": shift, "UV Map": cage.uv(position), "Sample UV": cage.uv(position)},
                           data_type="FLOAT_VECTOR")
-    # Captured once for every point, so the search below runs only where the lookup missed.
+    own = _OwnCagePoint(b, cage)
+    own_shift = b.node("GeometryNodeSampleIndex", {"Geometry": cage.rest, "Value": shift, "Index": own.index},
+                       data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
+    shifted = b.node("GeometryNodeSwitch", {"Switch": own.found, "False": displacement.outputs["Value"],
+                                            "True": own_shift}, input_type="VECTOR").outputs[0]
+    found = b.node("FunctionNodeBooleanMath", [own.found, displacement.outputs["Is Valid"]], operation="OR").outputs[0]
+    # Captured once for every point, so the search below runs only where both lookups missed.
     captured = b.node("GeometryNodeCaptureAttribute", {"Geometry": geometry}, domain="POINT")
     captured.capture_items.new("BOOLEAN", "Inside")
     captured.capture_items.new("VECTOR", "Moved")
     # By name: Blender 5.2 added a Selection input before the captured items.
-    group.links.new(displacement.outputs["Is Valid"], captured.inputs["Inside"])
-    group.links.new(b.math("ADD", position, displacement.outputs["Value"]), captured.inputs["Moved"])
+    group.links.new(found, captured.inputs["Inside"])
+    group.links.new(b.math("ADD", position, shifted), captured.inputs["Moved"])
     inside, moved_inside = captured.outputs["Inside"], captured.outputs["Moved"]
     both = b.node("FunctionNodeBooleanMath", [selection, inside], operation="AND").outputs[0]
     outside = b.node("FunctionNodeBooleanMath", [selection, inside], operation="NIMPLY").outputs[0]
@@ -349,6 +358,32 @@ def _map_points(b, cage, geometry, selection):
                        {"Geometry": captured.outputs[0], "Selection": both, "Position": moved_inside})
     return b.node("GeometryNodeSetPosition",
                   {"Geometry": looked_up.outputs[0], "Selection": outside, "Position": cage.mapped(position)}).outputs[0]
+
+
+class _OwnCagePoint:
+    """Whether each point of the deformed geometry is the cage's point of the same index, at
+    its rest place in the plane (to 1e-5 of the cage's extent): so it is where a mesh is its own
+    graph, unless edited since binding. Where islands of such a mesh overlap in the plane (a
+    puppet's arm over its body), the UV lookup cannot tell which island a point belongs to (it
+    moved body points with the arm); the index can. Fields ``index`` and ``found``."""
+
+    def __init__(self, b, cage):
+        self.index = b.node("GeometryNodeInputIndex").outputs[0]
+        rest = b.node("GeometryNodeSampleIndex", {"Geometry": cage.rest, "Value": cage.position, "Index": self.index},
+                      data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
+        apart = b.math("SUBTRACT", cage.position, rest)
+        across = b.node("ShaderNodeVectorMath", [apart, cage.normal], operation="DOT_PRODUCT").outputs["Value"]
+        along = b.math("SUBTRACT", apart, b.node("ShaderNodeVectorMath", {0: cage.normal, "Scale": across},
+                                                 operation="SCALE").outputs[0])
+        distance = b.node("ShaderNodeVectorMath", [along], operation="LENGTH").outputs["Value"]
+        extent = b.node("ShaderNodeVectorMath", [cage.span], operation="LENGTH").outputs["Value"]
+        tolerance = b.node("ShaderNodeMath", [extent, 1e-5], operation="MULTIPLY").outputs[0]
+        near = b.node("FunctionNodeCompare", {"A": distance, "B": tolerance},
+                      data_type="FLOAT", operation="LESS_THAN").outputs[0]
+        count = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.rest}, component="MESH")
+        listed = b.node("FunctionNodeCompare", {"A": self.index, "B": count.outputs["Point Count"]},
+                        data_type="INT", operation="LESS_THAN").outputs[0]
+        self.found = b.node("FunctionNodeBooleanMath", [near, listed], operation="AND").outputs[0]
 
 
 def _stroke_order(b, cage, moved, enabled):

@@ -55,27 +55,39 @@ def edges(mesh):
 
 
 def _welded(rest, flat, tris, mesh_edges):
-    """The mesh with vertices at one place (within 1e-6 of its size) merged, where that leaves
-    its boundary manifold: a mesh whose faces share no vertices (an OBJ import, Edge Split)
-    is one piece, not an island per face. Returns (flat points (p, 2), triangles, edges); the
-    mesh as it is when nothing merges or merging would pinch it."""
+    """The mesh with its faces joined where their edges lie on one another (within 1e-6 of its
+    size), as long as its boundary stays manifold: a mesh whose faces share no vertices (an OBJ
+    import, Edge Split) is one piece, not an island per face. Islands that only overlap (a
+    puppet's arm over its body) stay apart, even where a vertex of one lies on a vertex of the
+    other. Returns (flat points (p, 2), triangles, edges): the mesh as it is when nothing joins."""
     size = float(np.linalg.norm(np.ptp(rest, axis=0)))
     pairs = cKDTree(rest).query_pairs(1e-6 * size, output_type="ndarray")
     if len(pairs) == 0:
         return flat, tris, mesh_edges
-    count, label = connected_components(
-        coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(rest), len(rest))), directed=False)
-    first = np.zeros(count, dtype=np.int64)
-    first[label[::-1]] = np.arange(len(rest))[::-1]  # each place's first vertex
+    n = len(rest)
+    _, place = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
+                                    directed=False)
+    sides, uses = np.unique(np.sort(tris[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0, return_counts=True)
+    open_sides = sides[uses == 1]
+    _, side_place, lying = np.unique(np.sort(place[open_sides], axis=1), axis=0, return_inverse=True,
+                                     return_counts=True)
+    joined = np.zeros(n, dtype=bool)
+    joined[open_sides[lying[side_place.ravel()] > 1].ravel()] = True  # on an edge that lies on another
+    if not joined.any():
+        return flat, tris, mesh_edges
+    _, label = np.unique(np.where(joined, place, place.max() + 1 + np.arange(n)), return_inverse=True)
+    label = label.ravel()
+    first = np.zeros(label.max() + 1, dtype=np.int64)
+    first[label[::-1]] = np.arange(n)[::-1]  # each merged point's first vertex
     merged = label[tris]
     merged = merged[(merged[:, 0] != merged[:, 1]) & (merged[:, 1] != merged[:, 2]) & (merged[:, 0] != merged[:, 2])]
-    joined = np.sort(label[mesh_edges], axis=1)
-    joined = np.unique(joined[joined[:, 0] != joined[:, 1]], axis=0)
+    edges_merged = np.sort(label[mesh_edges], axis=1)
+    edges_merged = np.unique(edges_merged[edges_merged[:, 0] != edges_merged[:, 1]], axis=0)
     try:
         boundary_loops(merged)
-    except ValueError:  # faces meeting at a corner only: kept apart, as modelled
+    except ValueError:  # faces that would meet at a corner only: kept apart, as modelled
         return flat, tris, mesh_edges
-    return flat[first], merged, joined
+    return flat[first], merged, edges_merged
 
 
 def prepare(obj, settings):

@@ -269,6 +269,35 @@ def test_a_mesh_whose_faces_share_no_vertices_deforms_as_one_piece(addon):
     np.testing.assert_array_equal(checks.mesh_points(unwelded), before)
 
 
+def test_a_puppets_overlapping_islands_move_apart(addon):
+    """A cut-out puppet modelled as one mesh: an arm island lying over the body island, some of
+    its vertices on the body's. Its graph is the mesh itself; the arm dragged up takes all its
+    own vertices along and none of the body's (those under the arm jumped with it, and the arm's
+    over the body stayed behind, where the modifier looked points up by their place)."""
+    def quads(nx, ny, width, height, x0, y0, start):
+        verts = [(x0 + width * i / nx, y0 + height * j / ny, 0.0) for j in range(ny + 1) for i in range(nx + 1)]
+        faces = [[start + j * (nx + 1) + i + k for k in (0, 1, nx + 2, nx + 1)] for j in range(ny) for i in range(nx)]
+        return verts, faces
+
+    body, body_faces = quads(8, 4, 2.0, 1.0, 0.0, 0.0, 0)
+    arm, arm_faces = quads(6, 2, 1.8, 0.4, 1.2, 0.3, len(body))
+    mesh = bpy.data.meshes.new("Puppet")
+    mesh.from_pydata(body + arm, [], body_faces + arm_faces)
+    obj = bpy.data.objects.new("Puppet", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    rest = checks.mesh_points(obj).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert len(obj.shapedeform.cage.data.vertices) == len(rest)  # the mesh is its own graph
+    checks.add_handle(obj, (0.0, 0.5, 0.0))
+    hand = checks.add_handle(obj, (3.0, 0.5, 0.0))
+    hand.location.y += 1.0
+    bpy.context.view_layer.update()
+    moved = (checks.evaluated_mesh_points(obj) - rest)[:, :2]  # the arm also lifts in front
+    np.testing.assert_allclose(moved[:len(body)], 0.0, atol=1e-4)
+    np.testing.assert_allclose(moved[len(body):], np.tile([0.0, 1.0], (len(arm), 1)), atol=1e-4)
+
+
 def test_long_thin_faces_are_flagged_at_bind_and_refine_keeps_them_from_folding(addon, capfd):
     """Issue 15, item 5: slivers spanning a bent stretch keep straight edges and turn over,
     although the map under them does not fold; the modifier's Refine subdivides them first."""
