@@ -73,7 +73,8 @@ def prepare(obj, settings):
     if len(rest) == 0:
         raise RigError(f"'{obj.name}' has no control points")
     try:
-        plane = fit_plane(rest)
+        # A straight open curve lies in many planes: the one of a 2D curve, its local XY.
+        plane = fit_plane(rest, line_normal=(0.0, 0.0, 1.0))
         flat = plane.to_2d(rest)
         rings, strokes = _rings_and_strokes(curve, flat)
         if not rings:

@@ -133,7 +133,8 @@ def prepare(obj, settings):
     if len(rest) == 0:
         raise RigError(f"'{obj.name}' has no stroke points on the current frame")
     try:
-        plane = fit_plane(rest)
+        # Straight strokes lie in many planes: the one Blender draws in by default, local XZ.
+        plane = fit_plane(rest, line_normal=(0.0, 1.0, 0.0))
         flat = plane.to_2d(rest)
         size = float(np.linalg.norm(np.ptp(flat, axis=0)))
         rings = stroke_silhouette(flat, np.concatenate(offsets), np.concatenate(radii), np.concatenate(filled),

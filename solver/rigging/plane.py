@@ -87,7 +87,7 @@ class Plane:
         return cls(values[:3].copy(), values[3:].reshape(3, 3).copy())
 
 
-def fit_plane(points, flatness=DEFAULT_FLATNESS):
+def fit_plane(points, flatness=DEFAULT_FLATNESS, line_normal=None):
     """The best-fit plane of 3D points, refusing points that are not flat.
 
     Parameters
@@ -96,6 +96,10 @@ def fit_plane(points, flatness=DEFAULT_FLATNESS):
     flatness : float
         Largest distance from the plane allowed, as a fraction of the points' size (the
         diagonal of their bounding box).
+    line_normal : (3,) array_like, optional
+        For points on one line, which lie in many planes (a straight stroke, which its width
+        gives an area): the plane containing the line whose normal is nearest this one (the
+        object's drawing plane). Without it such points are refused.
 
     Returns
     -------
@@ -104,8 +108,9 @@ def fit_plane(points, flatness=DEFAULT_FLATNESS):
     Raises
     ------
     ValueError
-        No points, non-finite points, points on a line or at one place (no area to deform),
-        or points further from their plane than allowed; the message says how far.
+        No points, non-finite points, points at one place, points on a line (without
+        ``line_normal``), or points further from their plane than allowed; the message says
+        how far.
     """
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
@@ -115,13 +120,16 @@ def fit_plane(points, flatness=DEFAULT_FLATNESS):
     if not np.all(np.isfinite(points)):
         raise ValueError("some points have non-finite coordinates (NaN or inf)")
     size = float(np.linalg.norm(np.ptp(points, axis=0)))
-    if len(points) < 3 or size == 0.0:
-        raise ValueError("it has no area: fewer than 3 distinct points")
+    if size == 0.0:
+        raise ValueError("it has no area: all its points are at one place")
     origin = points.mean(axis=0)
     _, spread, directions = np.linalg.svd(points - origin, full_matrices=False)
-    if spread[1] <= 1e-9 * spread[0]:
-        raise ValueError("it has no area: all its points lie on one line")
-    normal = directions[2]
+    if len(points) < 3 or spread[1] <= 1e-9 * spread[0]:
+        if line_normal is None:
+            raise ValueError("it has no area: all its points lie on one line")
+        normal = _across(directions[0], np.asarray(line_normal, dtype=np.float64))
+    else:
+        normal = directions[2]
     if normal @ _NORMAL_PREFERENCE < 0:
         normal = -normal
     deviation = float(np.abs((points - origin) @ normal).max())
@@ -135,6 +143,17 @@ def fit_plane(points, flatness=DEFAULT_FLATNESS):
     u /= np.linalg.norm(u)
     v = np.cross(normal, u)
     return Plane(origin, np.stack([u, v, normal]))
+
+
+def _across(line, preferred):
+    """The unit normal of a plane containing direction ``line`` that is nearest ``preferred``
+    (or, where that runs along the line, nearest a world axis across it)."""
+    for candidate in (preferred, *np.eye(3)[np.argsort(np.abs(line))]):
+        normal = candidate - (candidate @ line) * line
+        length = float(np.linalg.norm(normal))
+        if length > 1e-6 * float(np.linalg.norm(candidate)):
+            return normal / length
+    raise ValueError("no plane found across the line")  # unreachable: some world axis is across it
 
 
 def transform_points(matrix, points):

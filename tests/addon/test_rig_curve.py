@@ -112,9 +112,34 @@ def test_curve_with_no_area_is_refused(addon):
     bpy.context.scene.collection.objects.link(obj)
     bpy.context.view_layer.objects.active = obj
     before = checks.snapshot()
-    with pytest.raises(RuntimeError, match="no area"):
+    with pytest.raises(RuntimeError, match="zero area"):
         bpy.ops.shapedeform.bind()
     assert checks.snapshot() == before and "sd_rest" not in curve
+
+
+@pytest.mark.parametrize("count", [2, 5])
+def test_a_straight_open_curve_is_swept_in_its_own_plane(addon, count):
+    """A straight rope (an open 2D curve with a bevel) lies in many planes: it is rigged in the
+    curve's XY plane, as a bent one is (it was refused: "all its points lie on one line")."""
+    curve = bpy.data.curves.new("Rope", "CURVE")
+    curve.dimensions, curve.bevel_depth = "2D", 0.05
+    spline = curve.splines.new("POLY")
+    spline.points.add(count - 1)
+    for i, point in enumerate(spline.points):
+        point.co = (2.0 * i / (count - 1), 0.0, 0.0, 1.0)
+    obj = bpy.data.objects.new("Rope", curve)
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, (0.0, 0.0, 0.0))
+    end = checks.add_handle(obj, (2.0, 0.0, 0.0))
+    end.location.y += 0.5
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    rope = evaluated_vertices(obj)  # its bevel makes it a mesh
+    assert np.all(np.isfinite(rope))
+    assert rope[rope[:, 0] > 1.9, 1].mean() == pytest.approx(0.5, abs=0.05)
+    assert np.abs(rope[rope[:, 0] < 0.1, 1]).max() < 0.1
 
 
 def test_a_curve_with_path_animation_moves_with_its_handles(addon, quiet):

@@ -111,6 +111,31 @@ def test_a_drawing_with_an_empty_layer_binds(addon):
     assert obj.shapedeform.is_bound
 
 
+@pytest.mark.parametrize("count", [2, 20])
+def test_a_straight_stroke_is_rigged_in_the_drawing_plane(addon, count):
+    """A straight stroke (a stick, a tail) lies in many planes: it is rigged in the XZ plane
+    Blender draws in, as a bent one is (it was refused: "all its points lie on one line")."""
+    bpy.ops.object.grease_pencil_add(type="EMPTY")
+    obj = bpy.context.active_object
+    layer = obj.data.layers[0] if len(obj.data.layers) else obj.data.layers.new("Lines")
+    drawing = (layer.current_frame() or layer.frames.new(bpy.context.scene.frame_current)).drawing
+    drawing.add_strokes([count])
+    line = np.stack([np.linspace(0.0, 2.0, count), np.zeros(count), np.zeros(count)], axis=1)
+    drawing.attributes["position"].data.foreach_set("vector", line.astype(np.float32).ravel())
+    radius = drawing.attributes.get("radius") or drawing.attributes.new("radius", "FLOAT", "POINT")
+    radius.data.foreach_set("value", np.full(count, 0.02, np.float32))
+    bpy.context.view_layer.update()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, line[0]))
+    end = checks.add_handle(obj, checks.world(obj, line[-1]))
+    end.location.z += 0.5
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    moved = drawing_points(obj)
+    assert moved[-1][[0, 2]] == pytest.approx([2.0, 0.5], abs=0.02)
+    assert np.abs(moved[:, 1]).max() < 0.05  # in the XZ plane (or barely lifted)
+
+
 def test_bind_warns_about_a_layer_moved_by_its_own_transform(addon, capsys):
     bpy.ops.object.grease_pencil_add(type="MONKEY")
     monkey = bpy.context.active_object

@@ -59,6 +59,19 @@ def test_degenerate_points_are_refused(points, message):
         fit_plane(points)
 
 
+@pytest.mark.parametrize("points", [np.array([[0, 0, 0], [1, 0, 0.5], [2, 0, 1.0]]), np.array([[0, 0, 0], [2, 0, 1.0]])])
+def test_points_on_a_line_take_the_plane_through_it_nearest_the_one_given(points):
+    # A straight stroke drawn in the XZ plane: on a line, which the XZ plane contains.
+    plane = fit_plane(points, line_normal=(0.0, 1.0, 0.0))
+    assert abs(plane.axes[2] @ [0.0, 1.0, 0.0]) == pytest.approx(1.0)
+    np.testing.assert_allclose(plane.to_3d(plane.to_2d(points)), points, atol=1e-12)
+    # A normal along the line itself still gives a plane through the line.
+    plane = fit_plane(points, line_normal=(2.0, 0.0, 1.0))
+    assert abs(plane.axes[2] @ (points[-1] - points[0])) < 1e-12
+    with pytest.raises(ValueError, match="one place"):
+        fit_plane(np.zeros((3, 3)), line_normal=(0.0, 1.0, 0.0))
+
+
 def test_transform_points():
     from solver.rigging.plane import transform_points
     matrix = np.eye(4)
