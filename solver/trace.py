@@ -31,7 +31,7 @@ def coverage(image):
     Raises
     ------
     ValueError
-        An array of another shape, too small to trace, or with NaN values.
+        An array of another shape, with no pixels, or with NaN values.
     """
     image = np.asarray(image)
     if image.ndim == 3:
@@ -40,8 +40,8 @@ def coverage(image):
         image = image[:, :, -1]
     if image.ndim != 2:
         raise ValueError(f"image must be (H, W) or (H, W, C), got shape {image.shape}")
-    if min(image.shape) < 2:
-        raise ValueError(f"image is too small to trace: {image.shape}")
+    if min(image.shape) < 1:
+        raise ValueError(f"image has no pixels: {image.shape}")
     values = image.astype(np.float64)
     if np.issubdtype(image.dtype, np.integer) and not np.issubdtype(image.dtype, np.bool_):
         values /= float(np.iinfo(image.dtype).max)

@@ -53,8 +53,10 @@ def prepare(obj, settings):
     quad = obj.data
     image = _image(obj)
     width, height = image.size
-    if width < 2 or height < 2:
+    if width < 1 or height < 1:
         raise RigError(f"'{obj.name}': its image '{image.name}' has no pixels (is the file missing?)")
+    if width * height < 2:
+        raise RigError(f"'{obj.name}': its image '{image.name}' is a single pixel: too small to cut a shape from")
     pixels = np.empty(width * height * 4, dtype=np.float32)
     image.pixels.foreach_get(pixels)
     corners = mesh_source.positions(quad).astype(np.float64)

@@ -107,3 +107,16 @@ def test_unbind_says_when_it_drops_edits_made_to_the_cut_out(addon, tmp_path):
     lost = binding.unbind(obj)
     assert len(lost) == 1 and "edits of its cut-out" in lost[0]
     assert len(obj.data.vertices) == 4  # the quad is back
+
+
+@pytest.mark.parametrize("height, width", [(1, 64), (64, 1)])
+def test_a_picture_one_pixel_thin_is_cut_out(addon, tmp_path, height, width):
+    """A line one pixel thin has something to deform (it was refused as having no pixels, as
+    if its file were missing); a single pixel is refused as such."""
+    obj = checks.import_picture(tmp_path, "line", np.ones((height, width, 4), np.float32))
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert obj.shapedeform.kind == "IMAGE"
+    dot = checks.import_picture(tmp_path, "dot", np.ones((1, 1, 4), np.float32))
+    bpy.context.view_layer.objects.active = dot
+    with pytest.raises(RuntimeError, match="'dot.png' is a single pixel"):
+        bpy.ops.shapedeform.bind()
