@@ -7,12 +7,14 @@ mesh; :func:`restore_legacy` gives them back when such a rig is unbound.
 """
 
 import numpy as np
+import shapely
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ... import solver
 from ...solver.outline import outline_graph
+from ...solver.shapes import geometry_rings
 from ...solver.rigging.outline import boundary_loops, smallest_angles
 from ...solver.rigging.plane import fit_plane
 from ..errors import RigError
@@ -101,23 +103,32 @@ def prepare(obj, settings):
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     flat, tris, mesh_edges = _welded(rest, plane.to_2d(rest), triangles(mesh), edges(mesh))
+    if len(tris) == 0:
+        raise RigError(f"'{obj.name}' cannot be rigged: it has no faces")
     try:
-        loops = boundary_loops(tris)
-    except ValueError as err:
-        raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
+        loops, pinched = boundary_loops(tris), None
+    except ValueError as err:  # faces meeting at a corner only: the outline still has a shape
+        loops, pinched = None, err
     on_faces = np.zeros(len(flat), dtype=bool)
     on_faces[tris.ravel()] = True
     mode = settings.graph_mode
     well_shaped = smallest_angles(flat, tris).min() >= OWN_GRAPH_MIN_ANGLE
     if mode == "AUTO":
-        mode = "OWN" if len(flat) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped else "OUTLINE"
+        mode = "OWN" if (len(flat) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped
+                         and pinched is None) else "OUTLINE"
     try:
         if mode == "OWN":
+            if pinched is not None:
+                raise ValueError(f"{pinched}; use the Outline graph")
             if not on_faces.all():
                 raise ValueError(f"{int((~on_faces).sum())} vertices are on no face; use the Outline graph")
             graph = solver.Graph(flat, mesh_edges, loops, tris)
         else:
-            rings = [flat[loop] for loop in loops]
+            if pinched is None:
+                rings = [flat[loop] for loop in loops]
+            else:
+                faces = shapely.union_all(shapely.polygons(flat[tris]))
+                rings = [ring for island in geometry_rings(faces) for ring in island]
             graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None

@@ -298,6 +298,38 @@ def test_a_puppets_overlapping_islands_move_apart(addon):
     np.testing.assert_allclose(moved[len(body):], np.tile([0.0, 1.0], (len(arm), 1)), atol=1e-4)
 
 
+def test_pixels_touching_at_corners_are_rigged_by_their_outline(addon):
+    """A sprite modelled pixel by pixel: squares that touch only at corners. The mesh cannot be
+    its own graph (its boundary pinches there; the Mesh choice says so and what to do), and the
+    Outline graph is built from the faces' union (both were refused as "not manifold")."""
+    index, faces = {}, []
+    for i, j in ((0, 0), (1, 1), (2, 0), (2, 2), (3, 1)):  # a zigzag of unit squares, corners shared
+        corners = [(i, j, 0.0), (i + 1, j, 0.0), (i + 1, j + 1, 0.0), (i, j + 1, 0.0)]
+        faces.append([index.setdefault(corner, len(index)) for corner in corners])
+    mesh = bpy.data.meshes.new("Sprite")
+    mesh.from_pydata(list(index), [], faces)
+    mesh.validate()
+    bpy.ops.object.select_all(action="DESELECT")
+    obj = bpy.data.objects.new("Sprite", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    obj.shapedeform.graph_mode = "OWN"
+    with pytest.raises(RuntimeError, match="use the Outline graph"):
+        bpy.ops.shapedeform.bind()
+    obj.shapedeform.graph_mode = "AUTO"
+    rest = checks.mesh_points(obj).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    handle = checks.add_handle(obj, (2.5, 0.5, 0.0))
+    handle.location.y += 0.25
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    moved = checks.evaluated_mesh_points(obj) - rest
+    middle = np.all((rest[:, :2] >= 2.0) & (rest[:, :2] <= 3.0), axis=1) & (rest[:, 1] <= 1.0)
+    np.testing.assert_allclose(moved[middle, 1], 0.25, atol=1e-3)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    np.testing.assert_array_equal(checks.mesh_points(obj), rest)
+
+
 def test_long_thin_faces_are_flagged_at_bind_and_refine_keeps_them_from_folding(addon, capfd):
     """Issue 15, item 5: slivers spanning a bent stretch keep straight edges and turn over,
     although the map under them does not fold; the modifier's Refine subdivides them first."""
