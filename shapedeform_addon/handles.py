@@ -285,6 +285,15 @@ def settle_duplicate(obj):
         follow(obj)
 
 
+def locked_by_override(obj):
+    """The present handles and pins of ``obj``'s rig that a library override holds as system
+    overrides: Blender's interface will not move or key them (it makes only armatures editable
+    when it overrides a Collection Instance)."""
+    return [item.object for item in obj.shapedeform.handles
+            if rig_format.present(item.object) and item.object.override_library is not None
+            and item.object.override_library.is_system_override]
+
+
 def owns(obj, empty):
     """Whether ``empty`` is a handle made for ``obj``'s own rig.
 

@@ -26,6 +26,7 @@ class SHAPEDEFORM_MT_object(bpy.types.Menu):
         layout.operator("shapedeform.add_handle", text="Add Overlap Pin", icon=KIND_ICONS["OVERLAP"]).kind = "OVERLAP"
         layout.operator("shapedeform.add_handle", text="Add Starch Pin", icon=KIND_ICONS["STARCH"]).kind = "STARCH"
         layout.operator("shapedeform.remove_handle", icon="REMOVE")
+        layout.operator("shapedeform.make_handles_editable", icon="LIBRARY_DATA_OVERRIDE")
         layout.separator()
         layout.operator("shapedeform.drag", icon="MOUSE_LMB_DRAG")
         layout.separator()

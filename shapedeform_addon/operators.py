@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Operators: bind, unbind, add and remove handles.
+"""Operators: bind, unbind, add and remove handles, make an override's handles editable.
 
 Every operator refuses bad input with a message in the status bar and changes nothing; where the
 context alone rules it out, its poll says why (the interface greys it out with that tooltip, and
@@ -186,6 +186,28 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class SHAPEDEFORM_OT_make_handles_editable(bpy.types.Operator):
+    """Make the handles of a library override's rig editable, to move and key them"""
+
+    bl_idname = "shapedeform.make_handles_editable"
+    bl_label = "Make Handles Editable"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        owner = rig_format.active_rig(context)
+        return poll_reason(cls, "" if owner is not None and handles.locked_by_override(owner) else
+                           "Only a library override's rig whose handles are not editable needs this")
+
+    def execute(self, context):
+        owner = rig_format.active_rig(context)
+        locked = handles.locked_by_override(owner)
+        for empty in locked:
+            empty.override_library.is_system_override = False
+        self.report({"INFO"}, f"Made {len(locked)} handle(s) of '{owner.name}' editable")
+        return {"FINISHED"}
+
+
 @contextmanager
 def _in_object_mode(obj):
     """Run the body in Object Mode (binding reads and swaps the object's data), then go back to
@@ -216,6 +238,7 @@ classes = (
     SHAPEDEFORM_OT_unbind,
     SHAPEDEFORM_OT_add_handle,
     SHAPEDEFORM_OT_remove_handle,
+    SHAPEDEFORM_OT_make_handles_editable,
 )
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -3,7 +3,7 @@
 
 import bpy
 
-from . import compat, keymaps, nodes
+from . import compat, handles, keymaps, nodes
 from .rig_format import active_rig, is_baked, is_follower, modifiers_of, present
 from .sources import grease_pencil
 
@@ -57,6 +57,8 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
             layout.label(text=f"'{obj.name}' is not in this scene (deleted?): Unbind removes its rig", icon="INFO")
         if settings.status:
             layout.label(text=settings.status, icon="ERROR")
+        if handles.locked_by_override(obj):
+            layout.operator("shapedeform.make_handles_editable", icon="LIBRARY_DATA_OVERRIDE")
         _draw_handles(layout, settings)
         layout.prop(settings, "region_size")
         _draw_modifier_inputs(layout, obj)

@@ -958,6 +958,29 @@ def test_a_character_bound_again_in_its_file_poses_again_in_the_shot(addon, tmp_
     assert np.abs(evaluated(obj) - rest).max() > 0.2
 
 
+def test_make_handles_editable_frees_an_overrides_handles_for_the_interface(addon, tmp_path, quiet):
+    """Blender overrides a linked character's objects as system overrides, which its interface
+    will not move or key: the rig's panel offers Make Handles Editable, which makes its handles
+    and pins user overrides (and then has nothing left to do)."""
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.0, 0.0, 0.0]), kind="OVERLAP") == {"FINISHED"}
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    assert not bpy.ops.shapedeform.make_handles_editable.poll()  # nothing to do without a rig
+
+    obj = override_in_a_new_shot(library)
+    empties = [item.object for item in obj.shapedeform.handles]
+    for empty in empties:
+        empty.override_library.is_system_override = True  # as Make Library Override leaves them
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.make_handles_editable() == {"FINISHED"}
+    assert len(empties) == 3 and not any(e.override_library.is_system_override for e in empties)
+    assert not bpy.ops.shapedeform.make_handles_editable.poll()
+
+
 def test_clearing_a_library_bake_in_the_shot_lasts_after_reopening(addon, tmp_path, quiet):
     """A character baked in its own file, overridden in a shot, its bake cleared there and its
     handle keyed: after reopening, the rig poses (the library's bake mark came back with the

@@ -12,7 +12,7 @@ from mathutils import Matrix
 import rig_checks as checks
 from test_rig_mesh import grid, rig_with_two_handles
 
-OPERATORS = ("bind", "unbind", "add_handle", "remove_handle", "drag", "bake", "clear_bake")
+OPERATORS = ("bind", "unbind", "add_handle", "remove_handle", "make_handles_editable", "drag", "bake", "clear_bake")
 
 
 class MenuLayout:
