@@ -119,8 +119,8 @@ def on_depsgraph_update(scene, depsgraph):
         # Pins ride on the cage (vertex parents), so their moves come from the pose, and posing
         # again for them would never settle: only their amounts (driven, or a key edited at
         # this frame) pose again.
-        if obj.shapedeform.pin_kind == "POSITION" and update.is_updated_transform or \
-                obj.shapedeform.pin_kind != "POSITION" and rig.stale(owner):
+        is_pin = obj.shapedeform.pin_kind != "POSITION"
+        if rig.stale(owner) if is_pin else update.is_updated_transform:
             moved[owner.name] = owner
     _pose(list(moved.values()), depsgraph)
 
