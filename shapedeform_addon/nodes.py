@@ -168,7 +168,7 @@ def _build(group):
     selection = _rigged_selection(b, given.outputs[RIGGED_INPUT])
     curves, left, right = _map_bezier_handles(b, cage, geometry, selection)
     moved = _set_bezier_handles(b, cage, _map_points(b, cage, curves, selection), selection, left, right)
-    ordered = _stroke_order(b, cage, moved, given.outputs[ORDER_INPUT])
+    ordered = _stroke_order(b, cage, moved, given.outputs[ORDER_INPUT], selection)
     # No cage (deleted by hand, or no faces): the geometry passes unchanged.
     faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.geometry}, component="MESH")
     has_cage = b.node("FunctionNodeCompare", {"A": faces.outputs["Face Count"], "B": 0},
@@ -191,9 +191,9 @@ def _interface(group):
     order = group.interface.new_socket(ORDER_INPUT, in_out="INPUT", socket_type="NodeSocketBool")
     order.description = ("Grease pencil: in each layer, draw the strokes lying on a part the pose folds over "
                          "another after the others, which keep their order (rebuilds the layers: their blend "
-                         "modes, masks, view-layer filters and parents are not kept, Use Lights is turned off, and layers "
-                         "keep only the current frame's drawing, so onion skins vanish). Bind turns it on where "
-                         "the drawing uses none of these")
+                         "modes, masks, view-layer filters, groups and parents are not kept, Use Lights is turned "
+                         "off, and layers keep only the current frame's drawing, keyed at frame 0, so onion skins "
+                         "and drawings before frame 0 vanish). Bind turns it on where the drawing uses none of these")
     order.default_value = False
     handles = group.interface.new_socket(HANDLES_INPUT, in_out="INPUT", socket_type="NodeSocketCollection")
     handles.description = ("The rig's handles: named here so Blender evaluates them wherever this object is "
@@ -386,9 +386,10 @@ class _OwnCagePoint:
         self.found = b.node("FunctionNodeBooleanMath", [near, listed], operation="AND").outputs[0]
 
 
-def _stroke_order(b, cage, moved, enabled):
+def _stroke_order(b, cage, moved, enabled, selection):
     """With ``enabled`` and grease pencil in ``moved``: strokes over a fold drawn last, under one
-    first.
+    first, on the layers the rig deforms (``selection``; the others keep their order: lying at
+    rest under a lifted cage, they would all count as under a fold).
 
     Grease pencil draws strokes in their order within a layer. Where the pose folds the shape
     over itself, the strokes lying on the folded-over part must draw after the ones under it;
@@ -422,6 +423,7 @@ def _stroke_order(b, cage, moved, enabled):
     higher = b.node("FunctionNodeCompare", {"A": above, "B": margin}, data_type="FLOAT",
                     operation="GREATER_THAN").outputs[0]
     over_fold = b.node("FunctionNodeBooleanMath", [ray.outputs["Is Hit"], higher], operation="AND").outputs[0]
+    over_fold = b.node("FunctionNodeBooleanMath", [over_fold, selection], operation="AND").outputs[0]
     down = b.node("ShaderNodeVectorMath", {"Vector": normal, "Scale": -1.0}, operation="SCALE").outputs[0]
     from_front = b.node("GeometryNodeRaycast", {"Target Geometry": posed_cage,
                                                 "Source Position": b.math("SUBTRACT", position, below),
@@ -432,10 +434,16 @@ def _stroke_order(b, cage, moved, enabled):
     lower = b.node("FunctionNodeCompare", {"A": beneath, "B": margin}, data_type="FLOAT",
                    operation="GREATER_THAN").outputs[0]
     under_fold = b.node("FunctionNodeBooleanMath", [from_front.outputs["Is Hit"], lower], operation="AND").outputs[0]
+    under_fold = b.node("FunctionNodeBooleanMath", [under_fold, selection], operation="AND").outputs[0]
     sort_weight = b.node("ShaderNodeMath", [_stroke_share(b, over_fold), _stroke_share(b, under_fold)],
                          operation="SUBTRACT").outputs[0]
     parts = b.node("GeometryNodeSeparateComponents", [moved])
-    drawings = _sorted_drawings(b, parts.outputs["Grease Pencil"], sort_weight)
+    # Weighed on the drawings, where the layers' marks of what is rigged are read (the curves
+    # they are sorted as know nothing of layers).
+    weighed = b.node("GeometryNodeCaptureAttribute", {"Geometry": parts.outputs["Grease Pencil"]}, domain="CURVE")
+    weighed.capture_items.new("FLOAT", "Weight")
+    b.group.links.new(sort_weight, weighed.inputs["Weight"])
+    drawings = _sorted_drawings(b, weighed.outputs[0], weighed.outputs["Weight"])
     joined = b.node("GeometryNodeJoinGeometry")
     for name in ("Mesh", "Curve", "Point Cloud", "Volume", "Instances"):
         b.group.links.new(parts.outputs[name], joined.inputs[0])

@@ -32,8 +32,9 @@ MIN_RADIUS_FRACTION = 0.005
 
 
 def _chosen_layers(obj, settings):
-    names = [n.strip() for n in settings.layers.split(",") if n.strip()]
     layers = obj.data.layers
+    whole = settings.layers.strip()  # one layer whose name has a comma in it, or a list
+    names = [whole] if whole in layers else [n.strip() for n in settings.layers.split(",") if n.strip()]
     missing = [n for n in names if n not in layers]
     if missing:
         raise RigError(f"'{obj.name}' has no layer {', '.join(repr(n) for n in missing)}")
@@ -82,11 +83,13 @@ def stroke_order_losses(obj):
     Stroke Order passes the drawings through curves and back (Sort Elements does not sort
     grease-pencil strokes), which makes new layers: opacity, tint, transform, pass index and
     radius offset are carried over, their lighting, blend modes, masks, view-layer filters and
-    parents are not (a parented layer would jump to where it is drawn unparented), and each
-    keeps only the current frame's drawing, so onion skins of its other keyframes vanish from
-    the viewport. Lighting matters only where the object uses lights too
-    (the 2D Animation template's objects do not). The rebuilt drawings all start at frame 0, so
-    a Build modifier after the rig's, which times strokes from their keyframe, draws nothing.
+    parents are not (a parented layer would jump to where it is drawn unparented), nor their
+    groups (a later modifier filtered by a layer group finds none), and each keeps only the
+    current frame's drawing, so onion skins of its other keyframes vanish from the viewport.
+    Lighting matters only where the object uses lights too (the 2D Animation template's objects
+    do not). The rebuilt drawings all start at frame 0, so a Build modifier after the rig's,
+    which times strokes from their keyframe, draws nothing, and a drawing keyed before frame 0
+    vanishes there.
     """
     layers = list(obj.data.layers)
     stack, ours = list(obj.modifiers), modifiers_of(obj)
@@ -98,6 +101,8 @@ def stroke_order_losses(obj):
         ("masks of", [layer for layer in layers if layer.use_masks and len(layer.mask_layers)]),
         ("view-layer filters of", [layer for layer in layers if layer.viewlayer_render]),
         ("parents of", [layer for layer in layers if layer.parent is not None]),
+        ("layer groups of", [layer for layer in layers if layer.parent_group is not None]),
+        ("drawings before frame 0 of", [layer for layer in layers if any(f.frame_number < 0 for f in layer.frames)]),
         ("the keyframe timing read by", later),
     )
     return [f"{what} " + ", ".join(f"'{item.name}'" for item in found) for what, found in checks if found]
@@ -158,8 +163,19 @@ def prepare(obj, settings):
         o.shapedeform[RIGGED_KEY] = name
 
     # Stroke Order is on wherever it costs the drawing nothing.
-    return Prepared(plane, graph, commit, advice=_transformed_layers_advice([layer for layer, _ in frames]),
-                    modifier_inputs={ORDER_INPUT: not stroke_order_losses(obj)})
+    rigged = [layer for layer, _ in frames]
+    advice = "; ".join(filter(None, (_transformed_layers_advice(rigged), _hidden_layers_advice(rigged, settings))))
+    return Prepared(plane, graph, commit, advice=advice, modifier_inputs={ORDER_INPUT: not stroke_order_losses(obj)})
+
+
+def _hidden_layers_advice(layers, settings):
+    """Advice on hidden layers rigged because no layers were named ("" when none is)."""
+    hidden = [layer.name for layer in layers if layer.hide] if not settings.layers.strip() else []
+    if not hidden:
+        return ""
+    return (f"the hidden {'layer' if len(hidden) == 1 else 'layers'} {', '.join(map(repr, hidden))} "
+            f"{'is' if len(hidden) == 1 else 'are'} part of the shape: name the layers to rig in Layers to leave "
+            f"{'it' if len(hidden) == 1 else 'them'} out")
 
 
 def _transformed_layers_advice(layers):

@@ -281,6 +281,19 @@ def test_grease_pencil_strokes_over_a_fold_draw_after_the_rest(addon):
     assert list(drawn_order(figure, "Fills")) == [body, arm, eye]
 
 
+def test_stroke_order_leaves_the_layers_the_rig_does_not_deform_alone(addon):
+    """Only "Fills" rigged: the unrigged layer's card and the sticker drawn on it keep their
+    order while the arm folds over the body (lying at rest under the lifted cage, both counted
+    as under a fold, and the card drew over its sticker)."""
+    figure, tip = figure_seen_from_the_front(overlay=True)
+    assert addon.shapedeform_addon.compat.modifier_input(*stroke_order_input(addon, figure)) is True
+    number_strokes(figure)
+    tip.location.x -= 2.0
+    bpy.context.view_layer.update()
+    assert list(drawn_order(figure, "Fills")) == [0, 2, 1]  # the arm over the body and its eye
+    assert list(drawn_order(figure, "Overlay")) == [0, 1]
+
+
 def test_a_grease_pencil_overlap_pin_puts_the_arm_in_front_or_behind(addon):
     """An overlap pin on the figure's arm, folded over its body: at +1 the arm draws last, at
     -1 first, under the body drawn as one large stroke (which lies mostly outside the fold, so
@@ -299,10 +312,13 @@ def test_a_grease_pencil_overlap_pin_puts_the_arm_in_front_or_behind(addon):
         assert list(drawn_order(figure, "Fills")) == order, amount
 
 
-def figure_seen_from_the_front():
+def figure_seen_from_the_front(overlay=False):
     """A grease-pencil figure drawn in XZ, unlit, seen from the front: a red body, a white eye
     drawn on it, and a blue arm (its own stroke) reaching out to the right; bound, with handles
-    on the body's left edge and the arm's tip. Returns the object and the tip's handle."""
+    on the body's left edge and the arm's tip. Returns the object and the tip's handle.
+
+    With ``overlay``, a layer "Overlay" above holds a card with a sticker drawn on it over the
+    body's left edge, and only "Fills" is rigged."""
     # Blender 4.5 keeps grease pencil v3 data apart from the legacy kind; 5.0 has only v3.
     data = getattr(bpy.data, "grease_pencils_v3", bpy.data.grease_pencils).new("Figure")
     layer = data.layers.new("Fills")
@@ -340,6 +356,12 @@ def figure_seen_from_the_front():
         material.grease_pencil.show_fill, material.grease_pencil.show_stroke = True, False
         material.grease_pencil.fill_color = colour
         data.materials.append(material)
+    if overlay:
+        card = data.layers.new("Overlay").frames.new(bpy.context.scene.frame_current).drawing
+        card.add_strokes([4, 4])
+        corners = [(-1.3, -0.95), (-0.9, -0.95), (-0.9, 0.3), (-1.3, 0.3), (-1.2, 0.0), (-1.0, 0.0), (-1.0, 0.2), (-1.2, 0.2)]
+        card.attributes["position"].data.foreach_set("vector", np.array([(x, 0.0, z) for x, z in corners], np.float32).ravel())
+        obj.shapedeform.layers = "Fills"
     front_camera()
     bpy.context.view_layer.objects.active = obj
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
@@ -375,8 +397,8 @@ def monkey_seen_from_the_front():
 
 def test_bind_turns_stroke_order_on_where_the_drawing_loses_nothing_by_it(addon):
     """Stroke Order rebuilds the layers: bind turns it on unless a layer is lit (in a lit
-    object), blended, masked, filtered by view layer, parented or has keyframes to show as
-    onion skins, and the sidebar says what it drops."""
+    object), blended, masked, filtered by view layer, parented, in a layer group, keyed before
+    frame 0 or has keyframes to show as onion skins, and the sidebar says what it drops."""
     losses = addon.shapedeform_addon.sources.grease_pencil.stroke_order_losses
 
     def bound(setup):
@@ -420,6 +442,19 @@ def test_bind_turns_stroke_order_on_where_the_drawing_loses_nothing_by_it(addon)
     assert bound(masked) == (["masks of 'Fills'"], False)
     assert bound(filtered) == (["view-layer filters of 'Lines'"], False)
     assert bound(animated) == (["onion skins of 'Lines'"], False)
+
+    def grouped(obj, fills, lines):  # a later modifier filtered by the group would find none
+        unlit(obj)
+        obj.data.layers.move_to_layer_group(lines, obj.data.layer_groups.new("Outlines"))
+
+    def early(obj, fills, lines):  # rebuilt drawings are keyed at frame 0: before it, nothing
+        unlit(obj)
+        for layer in (fills, lines):
+            layer.frames.move(layer.frames[0].frame_number, -20)
+
+    if hasattr(bpy.types.GreasePencilv3Layers, "move_to_layer_group"):  # 4.5's Python cannot group a layer
+        assert bound(grouped) == (["layer groups of 'Lines'"], False)
+    assert bound(early) == (["drawings before frame 0 of 'Fills', 'Lines'"], False)
 
 
 def stroke_order_input(addon, obj):

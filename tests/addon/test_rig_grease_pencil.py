@@ -142,3 +142,22 @@ def test_bind_warns_about_a_layer_moved_by_its_own_transform(addon, capsys):
     monkey.data.layers["Lines"].translation = (2.0, 0.0, 0.0)
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert "'Lines' is moved by a layer transform" in capsys.readouterr().out
+
+
+def test_a_layer_named_with_a_comma_can_be_chosen_and_hidden_layers_rigged_are_named(addon, capsys):
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    obj.data.layers["Lines"].name = "Lines, ink"
+    obj.shapedeform.layers = "Lines, ink"  # one layer, not two ('Lines' and 'ink' do not exist)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    marks = obj.data.attributes[obj.shapedeform[addon.shapedeform_addon.rig_format.RIGGED_KEY]]
+    values = np.zeros(len(obj.data.layers), dtype=bool)
+    marks.data.foreach_get("value", values)
+    assert [layer.name for layer, rigged in zip(obj.data.layers, values) if rigged] == ["Lines, ink"]
+    capsys.readouterr()
+
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    hidden = bpy.context.active_object
+    hidden.data.layers["Fills"].hide = True  # a reference drawing, say: it still shapes the rig
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert "the hidden layer 'Fills' is part of the shape" in capsys.readouterr().out
