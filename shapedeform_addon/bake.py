@@ -70,7 +70,14 @@ def _remove_keys(cage):
         return 0
     action = key.animation_data.action if key.animation_data else None
     removed = sum(1 for b in key.key_blocks if b.name.startswith(PREFIX))
+    uid = key.session_uid
     cage.shape_key_clear()
+    # Blender 4.5 and 5.0 give a copied mesh's shape keys one user too many (a duplicate's own
+    # cage is such a copy): clearing them then leaves the Key behind, pointing at nothing, and
+    # every later save reports it.
+    left = [k for k in bpy.data.shape_keys if k.session_uid == uid]
+    if left:
+        bpy.data.batch_remove(left)
     if action is not None and action.get(MARK) and action.users == 0:
         bpy.data.actions.remove(action)
     return removed
@@ -107,13 +114,28 @@ def clear(obj):
 
 # -- the bake ---------------------------------------------------------------------------------
 
-def frame_list(frame_start, frame_end, step=1):
-    """The frames a bake poses; ValueError naming the problem for a bad range."""
-    frame_start, frame_end, step = int(frame_start), int(frame_end), int(step)
+# The frames Blender has: a key past them lands on the last one (a bake that went past wrote
+# every later frame's key there, over each other).
+FIRST_FRAME = bpy.types.Scene.bl_rna.properties["frame_current"].hard_min
+LAST_FRAME = bpy.types.Scene.bl_rna.properties["frame_current"].hard_max
+
+
+def check_frames(frame_start, frame_end, step=1):
+    """ValueError naming the problem when ``frame_start``-``frame_end`` every ``step`` frames
+    is not a range of frames Blender has."""
     if step < 1:
         raise ValueError(f"the frame step must be 1 or more, got {step}")
     if frame_end < frame_start:
         raise ValueError(f"the last frame ({frame_end}) comes before the first ({frame_start})")
+    if frame_start < FIRST_FRAME or frame_end > LAST_FRAME:
+        raise ValueError(f"frames {frame_start}-{frame_end} run past Blender's, which go from {FIRST_FRAME} "
+                         f"to {LAST_FRAME}")
+
+
+def frame_list(frame_start, frame_end, step=1):
+    """The frames a bake poses; ValueError naming the problem for a bad range."""
+    frame_start, frame_end, step = int(frame_start), int(frame_end), int(step)
+    check_frames(frame_start, frame_end, step)
     return list(range(frame_start, frame_end + 1, step))
 
 
@@ -309,9 +331,9 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
 
     # Not remembered between bakes: unset, they are the scene's frame range at the time.
     frame_start: IntProperty(name="Start", description="First frame to bake (default: the scene's)", default=1,
-                             options={"SKIP_SAVE"})
+                             min=FIRST_FRAME, max=LAST_FRAME, options={"SKIP_SAVE"})
     frame_end: IntProperty(name="End", description="Last frame to bake (default: the scene's)", default=250,
-                           options={"SKIP_SAVE"})
+                           min=FIRST_FRAME, max=LAST_FRAME, options={"SKIP_SAVE"})
     step: IntProperty(name="Step", description="Bake every n-th frame", default=1, min=1)
 
     @classmethod

@@ -44,8 +44,10 @@ def frame_range(text):
         raise argparse.ArgumentTypeError(f"'{text}' is not a frame range like 1-250")
     start = int(match.group(1))
     end = int(match.group(2)) if match.group(2) is not None else start
-    if end < start:
-        raise argparse.ArgumentTypeError(f"'{text}': the last frame comes before the first")
+    try:
+        bake.check_frames(start, end)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f"'{text}': {err}") from None
     return start, end
 
 
@@ -111,6 +113,8 @@ def _bake(args):
         folder = os.path.dirname(output)
         if not os.path.isdir(folder):
             raise _UsageError(f"--output: the folder {folder} does not exist")
+        if os.path.isdir(output):
+            raise _UsageError(f"--output {output} is a folder: name a .blend file in it")
     if args.objects:
         # The scene's objects and the rigs it shows through collection instances; a handle or
         # cage stands for its rig, as in the Bake operator (an instanced rig's too).

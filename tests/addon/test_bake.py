@@ -209,6 +209,10 @@ def test_command_line_bakes_a_saved_file(addon, tmp_path, capsys):
                          (["bake", "--objects", "Nobody"], "no object named 'Nobody'"),
                          (["bake", "--output", str(tmp_path / "missing" / "x.blend")], "does not exist"),
                          (["bake", "--output", ""], "--output is empty"),  # an unset farm variable
+                         (["bake", "--output", str(tmp_path)], "is a folder"),
+                         (["bake", "--frames", "1048570-1048580"], "run past Blender's"),
+                         (["bake", "--frames", "1-3000000000"], "run past Blender's"),  # not 3e9 frames' memory
+                         (["bake", "--frames", "99999999999999999999"], "run past Blender's"),
                          (["bake", "--view-layer", "Nobody"], "no view layer named 'Nobody'"),
                          (["frobnicate"], "invalid choice")]:
         assert main(bad) == 2, bad
@@ -501,3 +505,44 @@ def test_the_documented_python_entry_point_imports(addon):
     for module_path in paths:
         function = getattr(importlib.import_module(module_path), "bake_objects")
         assert function is addon.shapedeform_addon.bake.bake_objects
+
+
+def test_a_bake_past_blenders_last_frame_is_refused(addon):
+    """Keys past frame 1,048,574 land on it: a bake that ran on wrote every later frame's key
+    there and reported success; the operator's range stops at Blender's too."""
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    bake = addon.shapedeform_addon.bake
+    for start, end in ((1048570, 1048580), (-1048580, -1048570)):
+        with pytest.raises(ValueError, match="run past Blender's"):
+            bake.bake_objects([obj], start, end)
+    assert cage_keys(obj) == []
+    rna = bpy.ops.shapedeform.bake.get_rna_type().properties
+    assert (rna["frame_end"].hard_min, rna["frame_end"].hard_max) == (bake.FIRST_FRAME, bake.LAST_FRAME) == (
+        -1048574, 1048574)
+
+
+def test_unbinding_a_copy_of_a_baked_rig_leaves_a_file_that_saves(addon, tmp_path):
+    """A baked rig duplicated with its handles gets its own cage, a copy of the baked one. On
+    Blender 4.5 and 5.0 the copy's shape keys have a user too many, so unbinding the copy left
+    them behind pointing at nothing, and every later save raised."""
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=3) == {"FINISHED"}
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    for o in [obj] + [item.object for item in obj.shapedeform.handles]:
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.object.duplicate() == {"FINISHED"}
+    copy = next(o for o in bpy.context.selected_objects if o.type == "MESH")
+    assert addon.shapedeform_addon.rig_format.is_owner(copy)  # a rig of its own, bake included
+    keys = {k.session_uid for k in bpy.data.shape_keys}
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    bpy.context.view_layer.objects.active = copy
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert all(k.user is not None for k in bpy.data.shape_keys)
+    assert len({k.session_uid for k in bpy.data.shape_keys}) == len(keys) - 1
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))  # raised on 4.5 and 5.0
