@@ -191,3 +191,22 @@ def test_a_curve_moved_by_its_only_handle_moves_rigidly(addon, handle_type, dime
     posed = evaluated_vertices(obj)
     assert posed.shape == rest.shape
     np.testing.assert_allclose(posed, rest + [0.2, 0.15, 0.0], atol=1e-4)
+
+
+def test_a_smooth_joint_stays_smooth(addon):
+    """Blender's Bezier circle (every joint smooth: its two handles in line) dragged at one side
+    by 0.6 of its radius: every joint's handles stay in line (each handle was moved by its own
+    nearest triangle's map, and the joints kinked by up to 7 degrees)."""
+    bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)
+    obj = bpy.context.active_object
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    right = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    right.location.y += 0.6
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    points, left, after = checks.evaluated_curve_points(obj).reshape(3, -1, 3)
+    assert np.linalg.norm(points - [1.0, 0.6, 0.0], axis=1).min() < 0.05  # it did move
+    incoming, outgoing = points - left, after - points
+    cosine = np.einsum("ij,ij->i", incoming, outgoing) / np.linalg.norm(incoming, axis=1) / np.linalg.norm(outgoing, axis=1)
+    assert np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))).max() < 0.5
