@@ -272,6 +272,8 @@ def _refusal(obj):
         rig_format.require_posable(obj, "drag its handles")
     except RigError as err:
         return str(err)
+    if rig_format.is_baked(obj):
+        return f"'{obj.name}' plays its bake: clear the bake (Clear Bake) to pose it live"
     return ""
 
 

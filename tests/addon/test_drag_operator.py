@@ -10,6 +10,7 @@ from types import SimpleNamespace
 
 import bpy
 import numpy as np
+import pytest
 from bpy_extras import anim_utils, view3d_utils
 from mathutils import Matrix
 
@@ -145,6 +146,20 @@ def test_clicks_that_grab_nothing_explain_why(addon):
         assert "edge-on" in str(err)
     else:
         raise AssertionError("an edge-on ray grabbed something")
+
+
+def test_a_baked_rig_offers_no_drag_and_says_why(addon):
+    """Greyed out with the reason, as Blender's operators are (it was offered, then refused
+    every click)."""
+    obj, _, _ = rig_with_two_handles()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.drag.poll()
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=2) == {"FINISHED"}
+    assert not bpy.ops.shapedeform.drag.poll()
+    with pytest.raises(RuntimeError, match="plays its bake: clear the bake"):
+        bpy.ops.shapedeform.drag("INVOKE_DEFAULT")
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+    assert bpy.ops.shapedeform.drag.poll()
 
 
 def test_auto_keying_keys_the_moved_handle(addon):
