@@ -95,13 +95,11 @@ def begin(context, obj, ray, pin=False):
     Raises
     ------
     RigError
-        Not bound, the ray misses the plane (edge-on view), no handle to grab, or the pin
-        could not be made; nothing was changed.
+        Not bound, baked or linked (:func:`_refusal`), the ray misses the plane (edge-on view),
+        no handle to grab, or the pin could not be made; nothing was changed.
     """
-    if obj is None or not obj.shapedeform.is_bound:
-        raise RigError("Select a bound object or one of its handles to drag")
-    if rig_format.is_baked(obj):
-        raise RigError(f"'{obj.name}' plays its bake: clear the bake (Clear Bake) to pose it live")
+    if _refusal(obj):
+        raise RigError(_refusal(obj))
     plane = _plane(obj)
     hit = ray_plane(*ray, *plane)
     if hit is None:
@@ -266,7 +264,7 @@ def _window_region(context):
 
 def _refusal(obj):
     """Why the rig ``obj`` (from :func:`~.rig_format.active_rig`) cannot be dragged, or ""."""
-    if obj is None:
+    if obj is None or not obj.shapedeform.is_bound:
         return "Select a bound object or one of its handles to drag"
     try:
         rig_format.require_posable(obj, "drag its handles")
