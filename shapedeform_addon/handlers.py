@@ -114,8 +114,8 @@ def on_depsgraph_update(scene, depsgraph):
         if rig_format.is_owner(obj) and rig.stale(obj):  # a setting driven or keyed, edited
             moved[obj.name] = obj
         owner = handles.rig_of(obj)
-        if owner is None or obj.type != "EMPTY":
-            continue
+        if owner is None or obj.type != "EMPTY" or owner.name in moved:
+            continue  # posed once whatever else of it changed
         # Pins ride on the cage (vertex parents), so their moves come from the pose, and posing
         # again for them would never settle: only their amounts (driven, or a key edited at
         # this frame) pose again.
