@@ -27,7 +27,9 @@ selected = mesh_source.selected
 
 
 def _image(obj):
-    """The image with alpha textured on ``obj``, or None."""
+    """The image with alpha textured on ``obj``, or None: the one whose alpha is wired to
+    something (a shader's Alpha), else the first with alpha."""
+    found = []
     for slot in obj.material_slots:
         material = slot.material
         if material is None or material.node_tree is None:
@@ -35,8 +37,8 @@ def _image(obj):
         for node in material.node_tree.nodes:
             image = getattr(node, "image", None) if node.type == "TEX_IMAGE" else None
             if image is not None and image.channels == 4 and image.alpha_mode != "NONE":
-                return image
-    return None
+                found.append((not node.outputs["Alpha"].is_linked, len(found), image))
+    return min(found)[2] if found else None
 
 
 def is_image_plane(obj):
@@ -67,8 +69,10 @@ def prepare(obj, settings):
     try:
         plane = fit_plane(corners)
         to_plane = fit_affine(uv.reshape(-1, 2), plane.to_2d(corners[loop_vertices]))
+        # Only what the plane shows: its UVs may frame part of the picture (a sprite sheet's).
+        shown = uv.reshape(-1, 2).astype(np.float64) * (width, height)
         rings = [apply_affine(to_plane, ring / (width, height))
-                 for ring in image_cutout(pixels.reshape(height, width, 4))]
+                 for ring in image_cutout(pixels.reshape(height, width, 4), window=shown)]
         graph = outline_graph(rings, settings.density)
         uvs = apply_affine(invert_affine(to_plane), graph.points)[graph.triangles].astype(np.float32)
     except ValueError as err:
@@ -87,7 +91,9 @@ def prepare(obj, settings):
         o.shapedeform[CUTOUT_KEY] = vertices.astype(np.float32).ravel()  # to tell, at unbind, whether it was edited
         o.data = cutout
 
-    return Prepared(plane, graph, commit)
+    advice = "" if np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)) else \
+        "its UVs show the picture more than once: only the copy in the UV square is cut out"
+    return Prepared(plane, graph, commit, advice=advice)
 
 
 def unbind(obj):
@@ -103,6 +109,8 @@ def unbind(obj):
         ["the Edit Mode edits of its cut-out (the picture's quad is back; Undo brings them back)"]
     if cutout.shape_keys is not None:
         lost.append("the shape keys of its cut-out (the picture's quad has none; Undo brings them back)")
+    if list(cutout.materials) != list(original.materials):
+        lost.append("the materials given to its cut-out (the picture's quad keeps its own; Undo brings them back)")
     obj.shapedeform.pop(CUTOUT_KEY, None)
     obj.data = original
     obj.shapedeform.original_data = None

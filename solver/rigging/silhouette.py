@@ -90,7 +90,7 @@ def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, toler
     return [ring for island in geometry_rings(union) for ring in island]
 
 
-def image_cutout(image, margin=1.0, level=1.0 / 255.0, tolerance=0.5):
+def image_cutout(image, margin=1.0, level=1.0 / 255.0, tolerance=0.5, window=None):
     """The cut-out of a picture with alpha: its visible pixels, grown by a margin.
 
     Parameters
@@ -104,24 +104,32 @@ def image_cutout(image, margin=1.0, level=1.0 / 255.0, tolerance=0.5):
         Alpha at or above which a pixel is visible.
     tolerance : float
         Simplification in pixels.
+    window : (k, 2) array_like, optional
+        A polygon in pixel units: only the part of the picture inside it is cut out (the part
+        a textured plane's UVs show).
 
     Returns
     -------
     list of (k, 2) float64 ndarray
         Rings in pixel units (x along columns, y along rows, one pixel is 1.0), clipped to the
-        picture ``[0, W] x [0, H]``.
+        picture ``[0, W] x [0, H]`` and to ``window``.
 
     Raises
     ------
     ValueError
-        No visible pixel (see :func:`solver.trace_silhouette`).
+        No visible pixel (see :func:`solver.trace_silhouette`), or none inside ``window``.
     """
     alpha = _without_dust(coverage(image), level)
     rings = trace_silhouette(alpha, level=level, tolerance=tolerance, min_area=1.0)
     height, width = alpha.shape
     geometry = shape_geometry(rings)
     grown = geometry.buffer(margin, join_style="mitre", mitre_limit=2.0)
-    clipped = _polygonal_part(shapely.intersection(grown, shapely.box(0, 0, width, height)))
+    frame = shapely.box(0, 0, width, height)
+    if window is not None:
+        frame = shapely.intersection(frame, shapely.Polygon(np.asarray(window, dtype=np.float64)).buffer(0))
+    clipped = _polygonal_part(shapely.intersection(grown, frame))
+    if clipped.is_empty:
+        raise ValueError("no visible pixel of the picture lies in the part its UVs show")
     simplified = shapely.simplify(clipped, 0.25 * margin, preserve_topology=True)
     if not simplified.is_empty and simplified.is_valid:
         clipped = simplified

@@ -120,3 +120,47 @@ def test_a_picture_one_pixel_thin_is_cut_out(addon, tmp_path, height, width):
     bpy.context.view_layer.objects.active = dot
     with pytest.raises(RuntimeError, match="'dot.png' is a single pixel"):
         bpy.ops.shapedeform.bind()
+
+
+def test_the_cut_out_is_what_the_plane_shows(addon, tmp_path):
+    """A plane whose UVs frame the right half of a picture (a sprite sheet's frame) is cut out
+    within itself (the cropped-away left disc appeared beside it); of several image nodes, the
+    one wired to the shader's alpha is cut out (the first one was, opaque: the whole quad); a
+    material given to the cut-out is named as dropped by Unbind."""
+    yy, xx = np.mgrid[:32, :64]
+    pixels = np.ones((32, 64, 4), np.float32)
+    pixels[..., 3] = (((xx - 16) ** 2 + (yy - 16) ** 2) < 10 ** 2) | (((xx - 48) ** 2 + (yy - 16) ** 2) < 10 ** 2)
+    obj = checks.import_picture(tmp_path, "sheet", pixels)
+    mesh = obj.data
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.uv_layers.active.data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2)
+    uv[:, 0] = 0.5 + 0.5 * uv[:, 0]  # the right half of the picture over the whole plane
+    mesh.uv_layers.active.data.foreach_set("uv", uv.ravel())
+    material = obj.active_material
+    opaque = bpy.data.images.new("Opaque", 8, 8, alpha=True)
+    opaque.pixels.foreach_set(np.ones(8 * 8 * 4, np.float32))
+    tree = material.node_tree
+    tree.nodes.new("ShaderNodeTexImage").image = opaque  # unwired
+    # The picture's node after it: removed and made again, its links with it.
+    picture = next(n for n in tree.nodes if n.type == "TEX_IMAGE" and n.image != opaque)
+    links = [(out.name, link.to_socket) for out in picture.outputs for link in out.links]
+    image = picture.image
+    tree.nodes.remove(picture)
+    again = tree.nodes.new("ShaderNodeTexImage")
+    again.image = image
+    for name, target in links:
+        tree.links.new(again.outputs[name], target)
+    assert [n.image for n in tree.nodes if n.type == "TEX_IMAGE"] == [opaque, image]
+    quad = checks.mesh_points(obj).copy()
+    low, high = quad.min(axis=0), quad.max(axis=0)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    cut = checks.mesh_points(obj)
+    assert np.all(cut[:, :2] >= low[:2] - 1e-5) and np.all(cut[:, :2] <= high[:2] + 1e-5)
+    # One disc (the right one) filling the middle of the plane: far less than the whole quad.
+    area = np.ptp(cut[:, 0]) * np.ptp(cut[:, 1])
+    assert area < 0.8 * np.ptp(quad[:, 0]) * np.ptp(quad[:, 1])
+
+    obj.data.materials.append(bpy.data.materials.new("Added"))
+    lost = addon.shapedeform_addon.binding.unbind(obj)
+    assert len(lost) == 1 and "materials given to its cut-out" in lost[0]
