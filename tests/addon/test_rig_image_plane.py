@@ -164,3 +164,13 @@ def test_the_cut_out_is_what_the_plane_shows(addon, tmp_path):
     obj.data.materials.append(bpy.data.materials.new("Added"))
     lost = addon.shapedeform_addon.binding.unbind(obj)
     assert len(lost) == 1 and "materials given to its cut-out" in lost[0]
+
+
+def test_bind_says_when_the_uvs_repeat_the_picture(addon, tmp_path, capsys):
+    obj, _ = import_picture(tmp_path)
+    mesh = obj.data
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.uv_layers.active.data.foreach_get("uv", uv)
+    mesh.uv_layers.active.data.foreach_set("uv", 2.0 * uv)  # the picture twice each way
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert "its UVs show the picture more than once: only the copy in the UV square is cut out" in capsys.readouterr().out
