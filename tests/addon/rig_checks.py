@@ -35,6 +35,13 @@ def add_handle(obj, location):
     return handle
 
 
+def bind_with_handles(obj, *points):
+    """Bind ``obj`` and add a handle at each of ``points`` (local, (3,)); returns the handles."""
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    return [add_handle(obj, world(obj, point)) for point in points]
+
+
 def mesh_points(obj, mesh=None):
     mesh = obj.data if mesh is None else mesh
     flat = np.empty(len(mesh.vertices) * 3, np.float32)

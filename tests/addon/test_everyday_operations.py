@@ -100,6 +100,12 @@ class Rigged:
         v[axis] = 1.0
         return v
 
+    def key_move(self, distance, last_frame):
+        """Key the second handle at rest at frame 1 and moved by ``distance`` at ``last_frame``."""
+        self.second.keyframe_insert("location", frame=1)
+        self.move(distance)
+        self.second.keyframe_insert("location", frame=last_frame)
+
     def move(self, distance, handle=None):
         """Move a handle (the second by default) across the shape, in the object's local space."""
         handle = self.second if handle is None else handle
@@ -315,9 +321,7 @@ def test_deleting_and_adding_vertices_in_edit_mode(addon, make, tmp_path, quiet)
     obj = make(tmp_path)
     rig = Rigged(obj)
     scene = bpy.context.scene
-    rig.second.keyframe_insert("location", frame=1)
-    rig.move(0.3)
-    rig.second.keyframe_insert("location", frame=10)
+    rig.key_move(0.3, 10)
     scene.frame_set(10)
 
     activate(obj)
@@ -1194,9 +1198,7 @@ def test_a_rig_in_a_background_set_follows_its_keys_in_the_scene_it_shows_in(add
     obj = make_mesh(tmp_path)
     rig = Rigged(obj)
     characters = bpy.context.scene
-    rig.second.keyframe_insert("location", frame=1)
-    rig.move(0.5)
-    rig.second.keyframe_insert("location", frame=5)
+    rig.key_move(0.5, 5)
     characters.frame_set(5)
     expected = evaluated(obj).copy()
     characters.frame_set(1)

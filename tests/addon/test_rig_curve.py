@@ -129,10 +129,7 @@ def test_a_straight_open_curve_is_swept_in_its_own_plane(addon, count):
         point.co = (2.0 * i / (count - 1), 0.0, 0.0, 1.0)
     obj = bpy.data.objects.new("Rope", curve)
     bpy.context.scene.collection.objects.link(obj)
-    bpy.context.view_layer.objects.active = obj
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    checks.add_handle(obj, (0.0, 0.0, 0.0))
-    end = checks.add_handle(obj, (2.0, 0.0, 0.0))
+    _, end = checks.bind_with_handles(obj, [0.0, 0.0, 0.0], [2.0, 0.0, 0.0])
     end.location.y += 0.5
     bpy.context.view_layer.update()
     assert obj.shapedeform.status == ""
@@ -199,9 +196,7 @@ def test_a_smooth_joint_stays_smooth(addon):
     nearest triangle's map, and the joints kinked by up to 7 degrees)."""
     bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)
     obj = bpy.context.active_object
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
-    right = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    _, right = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
     right.location.y += 0.6
     bpy.context.view_layer.update()
     assert obj.shapedeform.status == ""

@@ -125,9 +125,7 @@ def test_a_straight_stroke_is_rigged_in_the_drawing_plane(addon, count):
     radius = drawing.attributes.get("radius") or drawing.attributes.new("radius", "FLOAT", "POINT")
     radius.data.foreach_set("value", np.full(count, 0.02, np.float32))
     bpy.context.view_layer.update()
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    checks.add_handle(obj, checks.world(obj, line[0]))
-    end = checks.add_handle(obj, checks.world(obj, line[-1]))
+    _, end = checks.bind_with_handles(obj, line[0], line[-1])
     end.location.z += 0.5
     bpy.context.view_layer.update()
     assert obj.shapedeform.status == ""

@@ -25,9 +25,7 @@ def grid(name="Grid", x=12, y=6, turn=None):
 def rig_with_two_handles():
     """A bound grid with a handle near each end: (object, left handle, right handle)."""
     obj = grid()
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    left = checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
-    right = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    left, right = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
     return obj, left, right
 
 
@@ -255,10 +253,7 @@ def test_a_mesh_whose_faces_share_no_vertices_deforms_as_one_piece(addon):
     before = checks.mesh_points(unwelded).copy()
     poses = []
     for obj in (welded, unwelded):
-        bpy.context.view_layer.objects.active = obj
-        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-        checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
-        end = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+        _, end = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
         end.location.y += 0.5
         bpy.context.view_layer.update()
         assert obj.shapedeform.status == ""
