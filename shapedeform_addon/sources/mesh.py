@@ -58,10 +58,11 @@ def edges(mesh):
 
 def _welded(rest, flat, tris, mesh_edges):
     """The mesh with its faces joined where their edges lie on one another (within 1e-6 of its
-    size), as long as its boundary stays manifold: a mesh whose faces share no vertices (an OBJ
-    import, Edge Split) is one piece, not an island per face. Islands that only overlap (a
-    puppet's arm over its body) stay apart, even where a vertex of one lies on a vertex of the
-    other. Returns (flat points (p, 2), triangles, edges): the mesh as it is when nothing joins."""
+    size): a mesh whose faces share no vertices (an OBJ import, Edge Split) is one piece, not an
+    island per face. Islands that only overlap (a puppet's arm over its body) stay apart, even
+    where a vertex of one lies on a vertex of the other. (Where joined faces meet at a corner
+    only, :func:`prepare` rigs the outline.) Returns (flat points (p, 2), triangles, edges):
+    the mesh as it is when nothing joins."""
     size = float(np.linalg.norm(np.ptp(rest, axis=0)))
     pairs = cKDTree(rest).query_pairs(1e-6 * size, output_type="ndarray")
     if len(pairs) == 0:
@@ -85,10 +86,6 @@ def _welded(rest, flat, tris, mesh_edges):
     merged = merged[(merged[:, 0] != merged[:, 1]) & (merged[:, 1] != merged[:, 2]) & (merged[:, 0] != merged[:, 2])]
     edges_merged = np.sort(label[mesh_edges], axis=1)
     edges_merged = np.unique(edges_merged[edges_merged[:, 0] != edges_merged[:, 1]], axis=0)
-    try:
-        boundary_loops(merged)
-    except ValueError:  # faces that would meet at a corner only: kept apart, as modelled
-        return flat, tris, mesh_edges
     return flat[first], merged, edges_merged
 
 
