@@ -72,12 +72,18 @@ KEPT_INPUTS = (CAGE_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT, HANDLES_INPU
 
 
 def node_group():
-    """The current file's deformer group, built (or rebuilt from an older version) if needed."""
-    group = bpy.data.node_groups.get(GROUP_NAME)
-    if group is not None and group.bl_idname == "GeometryNodeTree" and group.get(VERSION_KEY) == VERSION:
-        return group
-    if group is None or group.bl_idname != "GeometryNodeTree":
-        group = bpy.data.node_groups.new(GROUP_NAME, "GeometryNodeTree")
+    """The current file's own deformer group, built (or rebuilt from an older version) if needed.
+
+    Ours is known by its version stamp, not its name: a group of the user's called "Shape
+    Deform" is left alone (ours is then "Shape Deform.001"). A linked library's group is never
+    used: it cannot be saved here, and when the library rebuilds it at a new version its inputs
+    change identifiers under this file's modifiers."""
+    ours = [g for g in bpy.data.node_groups
+            if g.library is None and g.bl_idname == "GeometryNodeTree" and VERSION_KEY in g]
+    for group in ours:
+        if group.get(VERSION_KEY) == VERSION:
+            return group
+    group = ours[0] if ours else bpy.data.node_groups.new(GROUP_NAME, "GeometryNodeTree")
     _rebuild(group)
     return group
 
@@ -113,6 +119,31 @@ def upgrade():
         if group.library is None and group.bl_idname == "GeometryNodeTree" and VERSION_KEY in group \
                 and group.get(VERSION_KEY) != VERSION:
             _rebuild(group)
+    _unlink_library_groups()
+
+
+def _unlink_library_groups():
+    """Give this file's own rigs this file's group where an earlier version gave them a linked
+    library's (it looked the group up by name), inputs carried over by name; a cage whose value
+    the library's rebuilt group lost is the object's own."""
+    local = None
+    for obj in bpy.data.objects:
+        if obj.library is not None or obj.override_library is not None:
+            continue
+        for modifier in obj.modifiers:
+            linked = modifier.node_group if modifier.type == "NODES" else None
+            if linked is None or linked.library is None or VERSION_KEY not in linked:
+                continue
+            local = local or node_group()
+            values = {name: compat.modifier_input(modifier, key) for name, key in input_identifiers(linked).items()
+                      if name in KEPT_INPUTS}
+            if values.get(CAGE_INPUT) is None:
+                values[CAGE_INPUT] = obj.shapedeform.cage
+            modifier.node_group = local
+            new = input_identifiers(local)
+            for name, value in values.items():
+                if name in new and value is not None:
+                    compat.set_modifier_input(modifier, new[name], value)
 
 
 def input_identifiers(group):

@@ -925,6 +925,51 @@ def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon,
     assert_plays_without_extension(lambda: evaluated(obj), expected, frames=(1, 6))
 
 
+def test_a_rig_made_beside_a_linked_character_has_this_files_group(addon, tmp_path, quiet):
+    """A shot linking a rigged character, with a rig of its own: the shot's rig gets the shot's
+    group, never the library's (it took the linked one, found by name, and stopped moving once
+    the library's group was rebuilt at a newer version); a file an earlier version made so is
+    repaired on opening. A group of the user's named like ours is left alone."""
+    nodes = addon.shapedeform_addon.nodes
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    override_in_a_new_shot(library)
+    linked = next(g for g in bpy.data.node_groups if g.library is not None)
+    built = len(linked.nodes)
+    own = grid("Own")
+    rig = Rigged(own)
+    group = own.modifiers[0].node_group
+    assert group.library is None and group.get(nodes.VERSION_KEY) == nodes.VERSION
+    assert len(linked.nodes) == built
+    rest = evaluated(own).copy()
+    rig.move(0.3)
+    posed = evaluated(own).copy()
+    assert np.abs(posed - rest).max() > 0.2
+
+    # An earlier version's file: the shot's modifier on the library's group, whose inputs the
+    # library's newer version renamed (its cage lost): opening it gives the shot's group back.
+    identifiers = nodes.input_identifiers(group)
+    own.modifiers[0].node_group = linked
+    for name, key in identifiers.items():
+        if name == nodes.CAGE_INPUT:
+            addon.shapedeform_addon.compat.set_modifier_input(own.modifiers[0], key, None)
+    addon.shapedeform_addon.handlers.sync_scene()
+    assert own.modifiers[0].node_group.library is None
+    rig.move(0.1)
+    assert own.shapedeform.status == ""
+    assert np.abs(evaluated(own) - posed).max() > 0.05
+
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    users = bpy.data.node_groups.new("Shape Deform", "GeometryNodeTree")
+    users.nodes.new("NodeGroupInput")
+    mine = grid("Mine")
+    Rigged(mine)
+    assert len(users.nodes) == 1 and nodes.VERSION_KEY not in users
+    assert mine.modifiers[0].node_group != users
+
+
 def test_a_character_bound_again_in_its_file_poses_again_in_the_shot(addon, tmp_path, quiet):
     """Unbind and bind again (another graph) in the character's file: the shot's override,
     reopened, poses with the new rig (its local copy of the old cage no longer fitted the new
