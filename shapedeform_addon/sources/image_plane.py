@@ -8,6 +8,8 @@ looks the same before posing. The quad's mesh is kept (``obj.shapedeform.origina
 given back on unbind, untouched; the cut-out is then deleted.
 """
 
+import os
+
 import bpy
 import numpy as np
 from mathutils import Matrix
@@ -26,9 +28,11 @@ from .prepared import Prepared
 selected = mesh_source.selected
 
 
-def _image(obj):
-    """The image with alpha textured on ``obj``, or None: the one whose alpha is wired to
-    something (a shader's Alpha), else the first with alpha."""
+def _image_node(obj):
+    """The image node textured on ``obj`` whose image has alpha, or None: the one whose alpha is
+    wired to something (a shader's Alpha), else the first. An image Blender could not load
+    (its file missing, a sequence no frame of which was shown yet) has no channels to tell:
+    it counts, so Bind can say what is wrong rather than rig the bare quad."""
     found = []
     for slot in obj.material_slots:
         material = slot.material
@@ -36,9 +40,65 @@ def _image(obj):
             continue
         for node in material.node_tree.nodes:
             image = getattr(node, "image", None) if node.type == "TEX_IMAGE" else None
-            if image is not None and image.channels == 4 and image.alpha_mode != "NONE":
-                found.append((not node.outputs["Alpha"].is_linked, len(found), image))
+            if image is not None and image.channels in (0, 4) and image.alpha_mode != "NONE":
+                found.append((not node.outputs["Alpha"].is_linked, len(found), node))
     return min(found)[2] if found else None
+
+
+def _image(obj):
+    node = _image_node(obj)
+    return None if node is None else node.image
+
+
+def _alpha(obj, node):
+    """(H, W) float32: the alpha of what ``node`` shows, rows bottom up; and advice (str).
+
+    A still's alpha; for an image sequence the most opaque of its frames' (every frame the node
+    plays is then inside the cut-out); a movie is rigged whole (its frames cannot be read here)."""
+    image = node.image
+    if image.source == "SEQUENCE":
+        return _sequence_alpha(obj, node), ""
+    width, height = image.size
+    if width < 1 or height < 1:
+        raise RigError(f"'{obj.name}': its image '{image.name}' has no pixels (is the file missing?)")
+    if image.source == "MOVIE":
+        return np.ones((height, width), np.float32), \
+            f"'{image.name}' is a movie: its whole frame is rigged (a cut-out of one frame would clip the others)"
+    pixels = np.empty(width * height * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    return pixels.reshape(height, width, 4)[..., 3], ""
+
+
+def _sequence_alpha(obj, node):
+    """The most opaque alpha of the frames ``node`` plays (its image user's frame offset and
+    duration), each read from its file; the image user's frame is put back."""
+    image, user = node.image, node.image_user
+    shown = user.frame_current
+    alpha = None
+    try:
+        for frame in range(user.frame_offset + 1, user.frame_offset + max(user.frame_duration, 1) + 1):
+            user.frame_current = frame
+            path = bpy.path.abspath(image.filepath_from_user(image_user=user), library=image.library)
+            if not os.path.isfile(path):
+                continue
+            still = bpy.data.images.load(path, check_existing=False)
+            try:
+                width, height = still.size
+                pixels = np.empty(width * height * 4, dtype=np.float32)
+                still.pixels.foreach_get(pixels)
+            finally:
+                bpy.data.images.remove(still)
+            frame_alpha = pixels.reshape(height, width, 4)[..., 3]
+            if alpha is not None and alpha.shape != frame_alpha.shape:
+                raise RigError(f"'{obj.name}': the frames of its image sequence '{image.name}' differ in size "
+                               f"({alpha.shape[1]} x {alpha.shape[0]} and {width} x {height} pixels)")
+            alpha = frame_alpha if alpha is None else np.maximum(alpha, frame_alpha)
+    finally:
+        user.frame_current = shown
+    if alpha is None or alpha.size == 0:
+        raise RigError(f"'{obj.name}': no frame of its image sequence '{image.name}' was found "
+                       f"(are the files missing?)")
+    return alpha
 
 
 def is_image_plane(obj):
@@ -53,14 +113,11 @@ def is_image_plane(obj):
 def prepare(obj, settings):
     """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
     quad = obj.data
-    image = _image(obj)
-    width, height = image.size
-    if width < 1 or height < 1:
-        raise RigError(f"'{obj.name}': its image '{image.name}' has no pixels (is the file missing?)")
+    node = _image_node(obj)
+    alpha, advice = _alpha(obj, node)
+    height, width = alpha.shape
     if width * height < 2:
-        raise RigError(f"'{obj.name}': its image '{image.name}' is a single pixel: too small to cut a shape from")
-    pixels = np.empty(width * height * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
+        raise RigError(f"'{obj.name}': its image '{node.image.name}' is a single pixel: too small to cut a shape from")
     corners = mesh_source.positions(quad).astype(np.float64)
     loop_vertices = np.empty(len(quad.loops), dtype=np.int32)
     quad.loops.foreach_get("vertex_index", loop_vertices)
@@ -72,7 +129,7 @@ def prepare(obj, settings):
         # Only what the plane shows: its UVs may frame part of the picture (a sprite sheet's).
         shown = uv.reshape(-1, 2).astype(np.float64) * (width, height)
         rings = [apply_affine(to_plane, ring / (width, height))
-                 for ring in image_cutout(pixels.reshape(height, width, 4), window=shown)]
+                 for ring in image_cutout(alpha, window=shown)]
         graph = outline_graph(rings, settings.density)
         uvs = apply_affine(invert_affine(to_plane), graph.points)[graph.triangles].astype(np.float32)
     except ValueError as err:
@@ -91,8 +148,9 @@ def prepare(obj, settings):
         o.shapedeform[CUTOUT_KEY] = vertices.astype(np.float32).ravel()  # to tell, at unbind, whether it was edited
         o.data = cutout
 
-    advice = "" if np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)) else \
-        "its UVs show the picture more than once: only the copy in the UV square is cut out"
+    if not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
+        advice = "; ".join(filter(None, [advice, "its UVs show the picture more than once: only the copy in "
+                                                  "the UV square is cut out"]))
     return Prepared(plane, graph, commit, advice=advice)
 
 

@@ -173,16 +173,21 @@ def snapshot():
     return state
 
 
-def import_picture(folder, name, pixels, **options):
-    """Save ``pixels`` (h, w, 4) float32 as ``<folder>/<name>.png`` and import it as a plane
-    (Import Images as Planes, with its ``options``); returns the plane."""
+def save_png(path, pixels):
+    """Save ``pixels`` (h, w, 4) float32, rows bottom up, as a PNG with alpha at ``path``."""
     height, width = pixels.shape[:2]
-    image = bpy.data.images.new(name, width, height, alpha=True)
+    image = bpy.data.images.new(path.stem, width, height, alpha=True)
     image.pixels.foreach_set(np.ascontiguousarray(pixels, dtype=np.float32).ravel())
-    image.filepath_raw = str(folder / f"{name}.png")
+    image.filepath_raw = str(path)
     image.file_format = "PNG"
     image.save()
     bpy.data.images.remove(image)
+
+
+def import_picture(folder, name, pixels, **options):
+    """Save ``pixels`` (h, w, 4) float32 as ``<folder>/<name>.png`` and import it as a plane
+    (Import Images as Planes, with its ``options``); returns the plane."""
+    save_png(folder / f"{name}.png", pixels)
     result = bpy.ops.image.import_as_mesh_planes(files=[{"name": f"{name}.png"}], directory=str(folder), **options)
     assert result == {"FINISHED"}
     return bpy.context.active_object

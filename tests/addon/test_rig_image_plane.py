@@ -174,3 +174,72 @@ def test_bind_says_when_the_uvs_repeat_the_picture(addon, tmp_path, capsys):
     mesh.uv_layers.active.data.foreach_set("uv", 2.0 * uv)  # the picture twice each way
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert "its UVs show the picture more than once: only the copy in the UV square is cut out" in capsys.readouterr().out
+
+
+def test_an_image_sequence_is_cut_out_around_every_frame(addon, tmp_path):
+    """A plane playing an image sequence (a disc moving across) is cut out around all the frames
+    it plays (it was cut out around the frame last loaded: every other frame was clipped, one to
+    nothing); one whose frames are all missing is refused by name (it was rigged as a bare quad)."""
+    yy, xx = np.mgrid[:H, :W]
+    for frame, x in ((1, 14), (2, 32), (3, 50)):
+        pixels = np.ones((H, W, 4), np.float32)
+        pixels[..., 3] = ((xx - x) ** 2 + (yy - 24) ** 2) < 10 ** 2
+        checks.save_png(tmp_path / f"walk_{frame:03d}.png", pixels)
+    result = bpy.ops.image.import_as_mesh_planes(files=[{"name": f"walk_{f:03d}.png"} for f in (1, 2, 3)],
+                                                 directory=str(tmp_path), image_sequence=True)
+    assert result == {"FINISHED"}
+    obj = bpy.context.active_object
+    bpy.context.scene.frame_set(1)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert obj.shapedeform.kind == "IMAGE"
+    u = uv_of_points(obj.data)[:, 0] * W
+    assert u.min() < 14 - 9 and u.max() > 50 + 9  # both outer discs inside
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+
+    image = next(n.image for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE")
+    image.filepath = str(tmp_path / "gone_001.png")
+    image.reload()
+    with pytest.raises(RuntimeError, match="no frame of its image sequence 'walk_001.png' was found"):
+        bpy.ops.shapedeform.bind()
+    assert not obj.shapedeform.is_bound
+
+
+def test_a_plane_whose_picture_is_missing_is_refused(addon, tmp_path):
+    obj, _ = import_picture(tmp_path)
+    image = next(n.image for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE")
+    image.filepath = str(tmp_path / "gone.png")
+    image.reload()
+    with pytest.raises(RuntimeError, match="has no pixels \\(is the file missing\\?\\)"):
+        bpy.ops.shapedeform.bind()
+    assert not obj.shapedeform.is_bound and len(obj.data.vertices) == 4
+
+
+def test_a_movie_plane_is_rigged_whole(addon, tmp_path, capsys):
+    """A movie's frames cannot be read one by one from Python: its plane is rigged whole, and
+    Bind says so (the cut-out was the last frame shown's, clipping the others)."""
+    scene = bpy.context.scene
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.render.resolution_x, scene.render.resolution_y = 32, 24
+    scene.render.film_transparent = True
+    scene.frame_start, scene.frame_end = 1, 2
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):  # Blender 5.0 and later
+        settings.media_type = "VIDEO"
+    settings.file_format = "FFMPEG"
+    scene.render.ffmpeg.format, scene.render.ffmpeg.codec = "QUICKTIME", "PNG"
+    settings.color_mode = "RGBA"
+    scene.render.filepath = str(tmp_path / "ball_")
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    scene.camera, camera.location = camera, (0.0, 0.0, 3.0)
+    bpy.ops.mesh.primitive_plane_add(size=0.5)  # a square in the middle of each frame
+    bpy.ops.render.render(animation=True)
+    movie = next(tmp_path.glob("ball_*"))
+    assert bpy.ops.image.import_as_mesh_planes(files=[{"name": movie.name}], directory=str(tmp_path)) == {"FINISHED"}
+    obj = bpy.context.active_object
+    quad = checks.mesh_points(obj).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert obj.shapedeform.kind == "IMAGE"
+    assert "is a movie: its whole frame is rigged" in capsys.readouterr().out
+    cut = checks.mesh_points(obj)
+    np.testing.assert_allclose(np.ptp(cut, axis=0), np.ptp(quad, axis=0), atol=1e-5)
