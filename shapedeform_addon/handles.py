@@ -122,12 +122,14 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
         follow = empty.constraints.new("CHILD_OF")
         follow.name, follow.target = FOLLOW, obj
         follow.inverse_matrix.identity()
+        empty.matrix_basis = Matrix((cage_local @ matrix).tolist())
     else:
+        # Its own transform in rig space (:func:`keep_in_rig_space`). Matrices, not lists: a
+        # nested list would be read column by column.
         empty.parent = obj
-        empty.matrix_parent_inverse.identity()
-    # In rig space, which is the object's space until Apply Transform changes the latter. A
-    # Matrix, not a list: a nested list would be read column by column.
-    empty.matrix_basis = Matrix((cage_local @ matrix).tolist())
+        to_object = rig_format.rig_to_object(obj)
+        empty.matrix_parent_inverse = Matrix(to_object.tolist())
+        empty.matrix_basis = Matrix((affine_inverse(to_object) @ cage_local @ matrix).tolist())
     empty.shapedeform.rig = obj
     off = distance_off(rig.posed, graph.triangles, point)
     if notes is not None and off > radius:
@@ -154,6 +156,39 @@ def add_all(obj, locations, kind="POSITION", on_rest=False, notes=None):
             remove(obj, set(added))
         raise
     return added
+
+
+def keep_in_rig_space(obj):
+    """Keep the own transforms of ``obj``'s handles in rig space, where their keys were made;
+    True when something changed.
+
+    Apply Transform (or Set Origin) on the owner keeps each child where it is by writing its
+    place into its own transform and clearing its parent inverse: a handle's keys, in rig space,
+    then played in the owner's new space (Apply Scale moved a keyed handle 0.5 on a shape 3
+    wide). A handle's parent inverse is kept at the map from rig space to the owner's space (the
+    cage's own transform), so its own transform stays in rig space: the place Apply wrote is
+    taken back there, and its keys mean what they did.
+    """
+    cage = obj.shapedeform.cage
+    if cage is None or cage.parent != obj:
+        return False
+    to_object = rig_format.rig_to_object(obj)
+    if abs(np.linalg.det(to_object[:3, :3])) < 1e-12:
+        return False
+    changed = False
+    for item in obj.shapedeform.handles:
+        handle = item.object
+        if handle is None or handle.library is not None or handle.override_library is not None \
+                or handle.parent != obj or handle.parent_type != "OBJECT":
+            continue
+        inverse = np.array(handle.matrix_parent_inverse, dtype=np.float64)
+        if np.allclose(inverse, to_object, rtol=0.0, atol=1e-6 * max(np.abs(to_object).max(), 1.0)):
+            continue
+        own = affine_inverse(to_object) @ inverse @ np.array(handle.matrix_basis, dtype=np.float64)
+        handle.matrix_parent_inverse = Matrix(to_object.tolist())
+        handle.matrix_basis = Matrix(own.tolist())
+        changed = True
+    return changed
 
 
 def _add_pin(obj, rig, point, kind):

@@ -417,6 +417,42 @@ def test_apply_rotation_and_scale_keeps_the_shape_and_the_rig(addon, make, tmp_p
         np.testing.assert_allclose(to_world(obj, data_points(obj)), quad_world, atol=1e-5)
 
 
+@pytest.mark.parametrize("make", ALL)
+def test_apply_transform_and_set_origin_keep_keyed_handles_playing(addon, make, tmp_path, quiet):
+    """Animators key their handles. Apply Transform and Set Origin keep the owner's children
+    where they are by rewriting their own transforms, which the handles' keys then overwrote:
+    every frame played moved (0.5 on a grid 3 wide). Now every frame plays as before."""
+    obj = make(tmp_path)
+    obj.scale = (1.5, 0.7, 1.2)
+    bpy.context.view_layer.update()
+    rig = Rigged(obj)
+    rig.key_move(0.3, 10)
+    scene = bpy.context.scene
+    frames = (1, 5, 10)
+
+    def played():
+        shown = {}
+        for frame in frames:
+            scene.frame_set(frame)
+            shown[frame] = to_world(obj, evaluated(obj))
+        return shown
+
+    expected = played()
+    assert np.abs(expected[10] - expected[1]).max() > 0.1
+    rotation = obj.type != "CURVE" or obj.data.dimensions == "3D"
+    scene.frame_set(5)
+    activate(obj)
+    assert bpy.ops.object.transform_apply(location=rotation, rotation=rotation, scale=True) == {"FINISHED"}
+    for frame, shown in played().items():
+        np.testing.assert_allclose(shown, expected[frame], atol=1e-5 * rig.size, err_msg=f"applied, frame {frame}")
+    scene.cursor.location = (0.3, -0.2, 0.1)
+    activate(obj)
+    assert bpy.ops.object.origin_set(type="ORIGIN_CURSOR") == {"FINISHED"}
+    for frame, shown in played().items():
+        np.testing.assert_allclose(shown, expected[frame], atol=1e-5 * rig.size, err_msg=f"origin set, frame {frame}")
+    assert obj.shapedeform.status == ""
+
+
 # -- shape keys --------------------------------------------------------------------------------
 
 def test_the_users_shape_keys_are_deformed_and_left_alone(addon, quiet):
