@@ -16,12 +16,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .depth import HEIGHT_PER_SCORE
+
 __all__ = ["Plane", "fit_plane", "transform_points", "affine_inverse", "DEFAULT_FLATNESS"]
 
-# A shape is flat when no point is further than this fraction of its size from the plane:
-# float32 coordinates of a rotated plane are off by about 1e-7 of the size, modelling slips
-# by far more than 1e-4.
-DEFAULT_FLATNESS = 1e-4
+# A shape is flat when no point is further than this fraction of its size from the plane: as
+# far as the rig's automatic depth lifts a pose (below ``depth.HEIGHT_PER_SCORE`` of the size),
+# so a pose applied (its modifier applied, or the object converted) can be bound again; it
+# was refused at 1e-4, which only float32 rounding (about 1e-7 of the size) stays below.
+DEFAULT_FLATNESS = HEIGHT_PER_SCORE
 
 # Sign of the normal: dotted with this it must be positive, which picks +Z for the top view,
 # -Y for the front view (X to the right, Z up) and +X for the side view.
