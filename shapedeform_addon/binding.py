@@ -82,15 +82,6 @@ def bind(obj):
     return rig.get(obj), prepared.advice
 
 
-def _forget_settings(obj):
-    settings = obj.shapedeform
-    rig_format.clear(settings)
-    settings.is_bound = False
-    settings.kind = ""
-    settings.status = ""
-    settings.cage = None
-
-
 def unbind(obj):
     """Remove the rig: modifier, cage, bake, handles; the object's data is as it was.
 
@@ -116,17 +107,11 @@ def unbind(obj):
     # cage (a duplicate whose rig's owner was unbound, or a cage deleted by hand) never wrote
     # the object's data: there is nothing to restore.
     legacy = rig_format.is_legacy(obj)
-    for modifier in rig_format.modifiers_of(obj):
-        obj.modifiers.remove(modifier)
-    lost = []
     if rig_format.is_follower(obj):
-        if handles.is_own_cage(obj, settings.cage):  # its own (handles.follow), sharing the rig's mesh
-            bpy.data.objects.remove(settings.cage)
-        settings.handles.clear()
-        settings.handle_collection = None
-        settings.original_data = None  # the quad is the owner's to give back
-        _forget_settings(obj)
-        return lost
+        for modifier in rig_format.modifiers_of(obj):
+            obj.modifiers.remove(modifier)
+        handles.release_follower(obj)
+        return []
     source = sources.module_for(obj)
     if settings.cage is None:
         lost = (source.restore_legacy(obj) if legacy else []) + source.unbind(obj)
@@ -140,7 +125,9 @@ def unbind(obj):
         bpy.data.objects.remove(cage)
         if mesh.users == 0:
             bpy.data.meshes.remove(mesh)
-    _forget_settings(obj)
+    for modifier in rig_format.modifiers_of(obj):  # after the source's unbind, which may ask whether it was applied
+        obj.modifiers.remove(modifier)
+    rig_format.forget(obj)
     handles.remove_all(obj)
     rig.forget(obj)
     return lost

@@ -316,8 +316,23 @@ def settle_duplicate(obj):
     """A duplicate of a rig's owner, made or found: a rig of its own where it was duplicated
     with handles of the rig (:func:`adopt_duplicated`), else a follower of the rig
     (:func:`follow`). Library data is left as the library has it."""
-    if obj.library is None and rig_format.is_follower(obj) and not adopt_duplicated(obj):
-        follow(obj)
+    if obj.library is None and rig_format.is_follower(obj):
+        if not rig_format.modifiers_of(obj):  # converted (Keep Original), its modifier applied: frozen
+            release_follower(obj)
+        elif not adopt_duplicated(obj):
+            follow(obj)
+
+
+def release_follower(obj):
+    """Make a follower a plain object: its own cage and its copy of the rig's settings go; its
+    data, modifiers aside, is as it is (the quad of an image plane is the owner's to give back)."""
+    settings = obj.shapedeform
+    if is_own_cage(obj, settings.cage):  # its own (follow), sharing the rig's mesh
+        bpy.data.objects.remove(settings.cage)
+    settings.handles.clear()
+    settings.handle_collection = None
+    settings.original_data = None
+    rig_format.forget(obj)
 
 
 def locked_by_override(obj):

@@ -95,6 +95,17 @@ def clear(settings):
         settings.pop(key, None)
 
 
+def forget(obj):
+    """Make ``obj`` unbound: its settings as an object never bound has them but for the
+    handles' (the caller removes those)."""
+    settings = obj.shapedeform
+    clear(settings)
+    settings.is_bound = False
+    settings.kind = ""
+    settings.status = ""
+    settings.cage = None
+
+
 # -- handles ----------------------------------------------------------------------------------
 
 def present(handle):

@@ -156,15 +156,23 @@ def prepare(obj, settings):
 
 def unbind(obj):
     """Give the quad back, with any transform applied to the cut-out since binding (Apply
-    Rotation & Scale) applied to it too, so the picture stays where it is. Call while the
+    Rotation & Scale) applied to it too, so the picture stays where it is; unless the rig's
+    modifier was applied or the object converted, which made the pose its own. Call while the
     rig's cage exists."""
     original = obj.shapedeform.original_data
     if original is None:
         return []
+    if obj.type != "MESH" or not rig_format.modifiers_of(obj):
+        # Converted, or its modifier applied: the pose is the object's own now, kept as a
+        # mesh's would be (the status bar said so); the quad is not given back over it.
+        obj.shapedeform.pop(CUTOUT_KEY, None)
+        obj.shapedeform.original_data = None
+        return []
     applied = rig_format.rig_to_object(obj)
     cutout = obj.data
     lost = [] if _as_bound(obj, cutout, applied) else \
-        ["the Edit Mode edits of its cut-out (the picture's quad is back; Undo brings them back)"]
+        ["the edits of its cut-out's vertices, in Edit Mode or by Join or Separate (the picture's quad is "
+         "back; Undo brings them back)"]
     if cutout.shape_keys is not None:
         lost.append("the shape keys of its cut-out (the picture's quad has none; Undo brings them back)")
     if list(cutout.materials) != list(original.materials):

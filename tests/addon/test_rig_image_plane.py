@@ -243,3 +243,44 @@ def test_a_movie_plane_is_rigged_whole(addon, tmp_path, capsys):
     assert "is a movie: its whole frame is rigged" in capsys.readouterr().out
     cut = checks.mesh_points(obj)
     np.testing.assert_allclose(np.ptp(cut, axis=0), np.ptp(quad, axis=0), atol=1e-5)
+
+
+@pytest.mark.parametrize("how", ["apply", "CURVE", "GREASEPENCIL", "copy"])
+def test_a_pose_made_the_planes_own_stays_on_unbind(addon, tmp_path, capsys, how):
+    """Applying the rig's modifier or converting the plane makes the pose its own, as the status
+    bar says: Unbind keeps it (it put the quad back over an applied pose, saying Edit Mode edits
+    were lost, and raised on a plane converted to a curve or a drawing, whose rig then could
+    never be removed). A copy made by Convert with Keep Original is a plain object (it counted as
+    following the rig, and could not be bound)."""
+    obj, _ = import_picture(tmp_path)
+    _, handle = checks.bind_with_handles(obj, (-0.44, -0.04, 0.0), (0.17, -0.04, 0.0))
+    handle.location.y += 0.2
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_mesh_points(obj).copy()
+    checks.select_only(obj)
+    if how == "apply":
+        assert bpy.ops.object.modifier_apply(modifier=obj.modifiers[0].name) == {"FINISHED"}
+    elif how == "copy":
+        assert bpy.ops.object.convert(target="MESH", keep_original=True) == {"FINISHED"}
+        copy = bpy.context.active_object
+        assert copy != obj
+        bpy.context.view_layer.update()
+        assert not copy.shapedeform.is_bound and not copy.modifiers
+        np.testing.assert_allclose(checks.mesh_points(copy), posed, atol=1e-5)
+        checks.select_only(obj)
+    else:
+        assert bpy.ops.object.convert(target=how) == {"FINISHED"}
+    bpy.context.view_layer.update()
+    capsys.readouterr()
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert not obj.shapedeform.is_bound
+    assert "could not" not in capsys.readouterr().out
+    assert not any(o.shapedeform.rig == obj for o in bpy.data.objects)
+    if how == "apply":
+        np.testing.assert_allclose(checks.mesh_points(obj), posed, atol=1e-6)
+    elif how == "copy":
+        assert len(obj.data.vertices) == 4  # the owner's rig, unbound as usual: its quad is back
+        checks.select_only(copy)
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    else:
+        assert obj.type == how
