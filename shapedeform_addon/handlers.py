@@ -73,7 +73,13 @@ def _pose(objects, depsgraph, final=None):
         messages = [rig.pose_safely(obj, depsgraph, final) for obj in objects
                     if not rig_format.is_baked(obj)]  # a baked rig's keys play (see bake.py)
     _report([m for m in messages if m])
-    if not (final or rig.final_quality()) and rig.unsettled(bpy.context.scene):
+    if not (final or rig.final_quality()):
+        _refine_later()
+
+
+def _refine_later():
+    """Have :func:`refine` run once the updates pause, if any rig is unsettled."""
+    if rig.unsettled(bpy.context.scene):
         if bpy.app.timers.is_registered(refine):
             bpy.app.timers.unregister(refine)  # still moving: wait for the next pause
         bpy.app.timers.register(refine, first_interval=REFINE_AFTER)
@@ -135,8 +141,31 @@ def on_frame_change(scene, depsgraph):
         return
     # A frame stepped to stays on screen: solve it as a render would at once, rather than
     # showing the Viewport budget's pose and, a moment later, the refined one (a visible jump
-    # on every step where a solve stops short). Playback and scrubbing keep the Viewport budget.
-    _pose([o for o in rig_format.owners(scene) if o.shapedeform.handles], depsgraph, final=not _interactive())
+    # on every step where a solve stops short). Playback and scrubbing keep the Viewport budget,
+    # and leave the rigs the viewport does not show to be posed when they stop.
+    owners = [o for o in rig_format.owners(scene) if o.shapedeform.handles]
+    interactive = _interactive()
+    if interactive:
+        view_layer = bpy.context.view_layer
+        hidden = {o.session_uid for o in owners if _unseen(o, view_layer)}
+        for obj in owners:
+            if obj.session_uid in hidden:
+                rig.defer(obj)
+        owners = [o for o in owners if o.session_uid not in hidden]
+    _pose(owners, depsgraph, final=not interactive)
+    if interactive:
+        _refine_later()
+
+
+def _unseen(owner, view_layer):
+    """Whether the viewport shows nothing of ``owner``'s rig: the owner, in ``view_layer``, is
+    hidden there or has its modifier off in the viewport, and no duplicate follows the rig
+    (its cage's mesh has no other user). One shown through a collection instance, which cannot
+    be told cheaply, counts as seen."""
+    if owner.shapedeform.cage.data.users > 1 or view_layer.objects.get(owner.name) != owner:
+        return False
+    return not (owner.visible_get(view_layer=view_layer)
+                and any(m.show_viewport for m in rig_format.modifiers_of(owner)))
 
 
 def _interactive():

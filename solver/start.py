@@ -80,11 +80,12 @@ class CoarseCopies:
     """Coarse copies of shapes, kept for reuse between deformers of the same graph.
 
     Keyed by the graph's points and loops, so a copy is never used for another shape; the
-    ``kept`` most recently used are kept.
+    ``kept`` most recently used are kept (an attribute: a caller that knows how many shapes it
+    deforms at once may raise it).
     """
 
     def __init__(self, kept=8):
-        self._kept = int(kept)
+        self.kept = int(kept)
         self._copies = {}
 
     def get(self, graph, interior=None, detail=None):
@@ -119,7 +120,7 @@ class CoarseCopies:
                     coarse = outline_graph(rings, interior, detail)
                 except ValueError:  # an outline the coarse copy cannot be built from
                     coarse = None
-            while self._copies and len(self._copies) >= self._kept:
+            while self._copies and len(self._copies) >= self.kept:
                 del self._copies[next(iter(self._copies))]
             self._copies[key] = None if coarse is None else (coarse, bind(coarse, graph.points))
         return self._copies[key]

@@ -54,3 +54,67 @@ def test_a_pose_that_stopped_short_is_refined_to_the_render_pose(addon, seed):
     assert np.abs(refined - rendered).max() <= 1e-9 * size
     assert np.abs(checks.mesh_points(obj) - refined_mesh).max() <= 1e-6 * size
     assert np.abs(shown - rendered).max() > 1e-3 * size  # the budget did stop short
+
+
+def keyed_grid(name, x):
+    """A grid rigged with a handle at each end, the second keyed 0.4 across from frame 1 to 10."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=x, y_subdivisions=6, size=1.0)
+    obj = bpy.context.active_object
+    obj.name = name
+    obj.data.transform(Matrix.Diagonal((2.0, 1.0, 1.0, 1.0)))
+    _, moved = checks.bind_with_handles(obj, (-1.0, 0.0, 0.0), (1.0, 0.0, 0.0))
+    moved.keyframe_insert("location", frame=1)
+    moved.location.y += 0.4
+    moved.keyframe_insert("location", frame=10)
+    return obj
+
+
+@pytest.mark.parametrize("how", ["hidden", "modifier off"])
+def test_rigs_the_viewport_does_not_show_wait_until_playback_stops(addon, monkeypatch, how):
+    """Playing or scrubbing, a rig the viewport does not show is not solved (hiding characters
+    did not make playback any faster: every rig was solved on every frame); once the frames
+    pause it is posed, as a render poses it."""
+    rig, handlers = addon.shapedeform_addon.rig, addon.shapedeform_addon.handlers
+    scene = bpy.context.scene
+    shown, unseen = keyed_grid("Shown", 12), keyed_grid("Unseen", 13)
+    scene.frame_set(1)
+    shown_before, unseen_before = cage_points(shown).copy(), cage_points(unseen).copy()
+    if how == "hidden":
+        unseen.hide_set(True)
+    else:
+        unseen.modifiers[0].show_viewport = False
+    monkeypatch.setattr(handlers, "_interactive", lambda: True)  # as if the animation played
+    scene.frame_set(10)
+    assert np.abs(cage_points(shown) - shown_before).max() > 0.2
+    assert cage_points(unseen).tobytes() == unseen_before.tobytes()
+    assert rig.unsettled(scene) == [unseen]
+    handlers.refine()  # what the timer does once the frames pause
+    assert rig.unsettled(scene) == []
+    refined = cage_points(unseen).copy()
+    assert np.abs(refined - unseen_before).max() > 0.2
+    rig.forget(unseen)
+    rig.pose(unseen, final=True)  # what a render solves
+    np.testing.assert_allclose(cage_points(unseen), refined, atol=1e-6)
+
+
+def cage_points(obj):
+    """The pose the rig's cage holds, (n, 3) in rig space."""
+    return checks.mesh_points(obj.shapedeform.cage)
+
+
+def test_every_cached_rigs_coarse_copy_outlives_a_rebuild(addon, monkeypatch):
+    """Undo drops the rig cache and rebuilds each rig, which finds its coarse copy kept (making
+    it is most of a rebuild). The copies were kept for the 32 last used: past 32 rigs each
+    rebuild evicted the copy the next one needed, and every copy was made again on every undo."""
+    rig = addon.shapedeform_addon.rig
+    copies = rig._coarse_copies
+    monkeypatch.setattr(copies, "kept", 2)  # as a scene with more rigs than the copies once kept
+    objects = [keyed_grid(f"Grid {k}", 30 + 4 * k) for k in range(3)]
+    for obj in objects:
+        rig.pose(obj)
+    made = dict(copies._copies)
+    assert len(made) >= 3 and any(value is not None for value in made.values())
+    rig.forget()  # as undo does
+    for obj in objects:
+        rig.pose(obj)
+    assert all(copies._copies.get(key) is value for key, value in made.items())
