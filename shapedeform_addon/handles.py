@@ -95,7 +95,8 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     world = rig_format.rig_space(obj)
     graph = rig.graph
     try:
-        point, rest_centre = place(rig.plane, world, location, graph.points, rig.posed, graph.triangles, on_rest)
+        point, rest_centre = place(rig.plane, world, location, graph.points, rig.posed, graph.triangles, on_rest,
+                                   posed_heights=rig.plane.heights(rig.shown))
     except ValueError as err:
         raise RigError(f"'{obj.name}': {err}") from None
     if kind != "POSITION":

@@ -211,7 +211,27 @@ def distance_off(points, triangles, point):
     return float(np.min(np.linalg.norm(starts + along[..., None] * edge - point, axis=-1)))
 
 
-def place(plane, space, location, rest_points, posed_points, triangles, on_rest=False):
+def _layer_at(posed_points, posed_heights, triangles, point, height):
+    """Where the posed shape lies under ``point`` (2,) in the layer nearest ``height``: the
+    containing triangle (t,) index and barycentric weights (3,), or None where no triangle
+    contains it. Where the pose folds the shape over itself several do, one per layer."""
+    corners = np.asarray(posed_points, dtype=np.float64)[triangles]          # (t, 3, 2)
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    e1, e2, d = b - a, c - a, point - a
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    safe = np.where(np.abs(det) > 0.0, det, 1.0)
+    w1 = (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / safe
+    w2 = (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / safe
+    weights = np.stack([1.0 - w1 - w2, w1, w2], axis=1)
+    inside = np.flatnonzero((np.abs(det) > 0.0) & np.all(weights >= -1e-9, axis=1))
+    if not len(inside):
+        return None
+    layer_heights = np.einsum("tk,tk->t", weights[inside], np.asarray(posed_heights, dtype=np.float64)[triangles[inside]])
+    best = inside[np.argmin(np.abs(layer_heights - height))]
+    return best, weights[best]
+
+
+def place(plane, space, location, rest_points, posed_points, triangles, on_rest=False, posed_heights=None):
     """Where a handle added at ``location`` goes, in the shape's plane.
 
     Parameters
@@ -226,6 +246,11 @@ def place(plane, space, location, rest_points, posed_points, triangles, on_rest=
     triangles : (t, 3) array_like of int
     on_rest : bool
         ``location`` is a point of the rest shape (a selected vertex), not of the posed one.
+    posed_heights : (n,) array_like, optional
+        Graph points' heights off the plane as posed (the depth that orders a fold's layers):
+        where the pose folds the shape over itself, the handle goes on the layer whose height
+        is nearest ``location``'s (the one clicked on), not on whichever the triangulation
+        gives first.
 
     Returns
     -------
@@ -247,9 +272,16 @@ def place(plane, space, location, rest_points, posed_points, triangles, on_rest=
     # Blender stores a location as float32, clamping an infinity to float32's largest value.
     if not np.all(np.abs(location) < np.finfo(np.float32).max):
         raise ValueError("the handle's location is not a finite point")
-    point = plane.to_2d(transform_points(affine_inverse(space), location[None]))[0]
+    in_rig = transform_points(affine_inverse(space), location[None])
+    point = plane.to_2d(in_rig)[0]
     if not np.all(np.isfinite(point)):
         raise ValueError("the handle's location is not a finite point")
     if on_rest:  # placed where that rest point is now, so it holds the shape as it is
         return rest_position(posed_points, rest_points, triangles, point[None])[0], point
-    return point, rest_position(rest_points, posed_points, triangles, point[None])[0]
+    triangles = np.asarray(triangles, dtype=np.int64)
+    layer = None if posed_heights is None else \
+        _layer_at(posed_points, posed_heights, triangles, point, plane.heights(in_rig)[0])
+    if layer is None:
+        return point, rest_position(rest_points, posed_points, triangles, point[None])[0]
+    triangle, weights = layer
+    return point, weights @ np.asarray(rest_points, dtype=np.float64)[triangles[triangle]]

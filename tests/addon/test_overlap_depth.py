@@ -167,6 +167,33 @@ def test_overlap_pins_put_the_pinned_part_in_front_or_behind_and_key_between(add
     assert render_overlap(obj, arm, tmp_path, "keyed10", engine)[0] >= 0.97  # in front of it
 
 
+def test_a_pin_added_where_the_pose_overlaps_itself_goes_on_the_layer_clicked(addon):
+    """Clicked on the arm where it lies over the torso (the arm's place, in front), an overlap
+    pin binds to the arm: it was bound to whichever layer's triangle the triangulation gave
+    first, the torso's at all 11 such places tried, so -1 sank the torso and +1 lifted it over
+    the arm. Given the torso's height there, it binds to the torso."""
+    obj, arm = figure()
+    swing_arm_across(obj)
+    bpy.context.scene.frame_set(10)
+    rest, posed = checks.mesh_points(obj), checks.evaluated_mesh_points(obj)
+    on_arm = (rest[:, 0] > 0.45) & (rest[:, 1] > 0.55) & (rest[:, 1] < 0.75)
+    over_torso = on_arm & (np.abs(posed[:, 0]) < 0.2) & (np.abs(posed[:, 1]) < 0.9)
+    assert over_torso.sum() >= 4
+    torso = rest[:, 0] < 0.25
+    rest_of = addon.shapedeform_addon.rig_format.rest_of(obj.shapedeform.cage)
+    for k in np.flatnonzero(over_torso)[:6]:
+        below = np.flatnonzero(torso)[np.argmin(np.linalg.norm(posed[torso, :2] - posed[k, :2], axis=1))]
+        for location, on_the_arm in ((posed[k], True), ((*posed[k, :2], posed[below, 2]), False)):
+            checks.select_only(obj)
+            assert bpy.ops.shapedeform.add_handle(location=tuple(location), kind="OVERLAP") == {"FINISHED"}
+            pin = obj.shapedeform.handles[-1]
+            point = pin[addon.shapedeform_addon.rig_format.PIN_POINT]
+            pin.object.shapedeform.in_front = 0.0  # the next place is clicked on the same layers
+            bpy.context.view_layer.update()
+            # The torso's right edge (x = 0.3) is the shoulder's seam, on both parts.
+            assert (rest_of[point, 0] > 0.35 if on_the_arm else rest_of[point, 0] <= 0.3 + 1e-6), (k, rest_of[point])
+
+
 def test_render_animation_and_drivers_follow_an_overlap_pins_amount(addon, tmp_path):
     """Keyed behind at frame 9 and in front at frame 10, a pinned hand renders in front at
     frame 10 of Render Animation, as a farm runs it (a render's depsgraph keeps the frame's
