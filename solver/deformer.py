@@ -141,9 +141,9 @@ class Deformer:
         self._folds = self._area = None
         self._starts = []
         if len(self.free):
-            self._build(weights, newton, CoarseCopies() if coarse_copies is None else coarse_copies)
+            self._build(weights, newton, CoarseCopies() if coarse_copies is None else coarse_copies, stiffness)
 
-    def _build(self, weights, newton, copies):
+    def _build(self, weights, newton, copies, stiffness):
         graph, options, unknowns = self.graph, self.options, self.unknowns
         # A V = A_c c + [A_f 0; 0 A_f] v, kept coordinate-major (2, r) and flattened.
         self._free_block, self._free_block_transpose, self._fixed_columns = unknowns.split(self.energy.matrix)
@@ -160,7 +160,7 @@ class Deformer:
             at_handles = max(1.0, options.fold_weight_at_handles * options.fold_weight / fold_weight) \
                 if fold_weight > 0 else 1.0
             self._folds = FoldPenalty(graph, unknowns, options.fold_threshold, fold_weight, options.sliver_area,
-                                      at_handles)
+                                      at_handles, stiffness)
         triangles = graph.triangles if self._folds is not None else None
 
         # A graph at the default spacing keeps the paper's energy and its solves their path bit

@@ -86,9 +86,15 @@ class FoldPenalty:
     at_handles : float
         ``Options.fold_weight_at_handles``: the factor on ``weight`` for triangles with a corner
         held by a handle.
+    stiffness : (n,) array_like, optional
+        The energy's factor per point (:class:`solver.energy.Energy`): each triangle's term is
+        weighed by its corners' mean, as the energy's rows are, so a starched region is held
+        open as firmly, relative to its stiffer energy, as the rest (unscaled, the stiffer
+        energy overpowered the penalty there and folded triangles no pose without it folded;
+        a stiffness the same everywhere scales the whole energy and changes no pose).
     """
 
-    def __init__(self, graph, unknowns, threshold, weight, sliver_area, at_handles=1.0):
+    def __init__(self, graph, unknowns, threshold, weight, sliver_area, at_handles=1.0, stiffness=None):
         triangles = graph.triangles
         count = len(triangles)
         ones = np.ones(count)
@@ -111,6 +117,8 @@ class FoldPenalty:
         held = np.zeros(graph.n, dtype=bool)
         held[unknowns.fixed] = True
         self._scale[held[triangles].any(axis=1)] *= at_handles
+        if stiffness is not None:
+            self._scale *= np.asarray(stiffness, dtype=np.float64).reshape(-1)[triangles].mean(axis=1)
         self._floor = threshold * rest_area
         self.triangles = triangles
 

@@ -62,3 +62,39 @@ def test_bad_stiffness_is_refused(bad):
     values = np.full(graph.n, bad) if np.ndim(bad) == 0 else bad
     with pytest.raises(ValueError, match="stiffness"):
         solver.Deformer(graph, np.concatenate([left, right]), stiffness=values)
+
+
+def folded(graph, positions):
+    return int((solver.triangulate.triangle_cross(positions, graph.triangles)
+                * solver.triangulate.triangle_cross(graph.points, graph.triangles) < 0).sum())
+
+
+def test_a_stiffness_the_same_everywhere_changes_no_pose_with_the_fold_penalty(bar_pushed_together):
+    """It scales the whole energy; the fold penalty was left unscaled, so it moved the pose."""
+    graph, handles, targets = bar_pushed_together
+    plain = solver.Deformer(graph, handles, prevent_flips=True).solve(targets, max_iterations=300).positions
+    starched = solver.Deformer(graph, handles, prevent_flips=True, stiffness=np.full(graph.n, 10.0)).solve(
+        targets, max_iterations=300).positions
+    assert np.abs(plain - starched).max() <= 1e-9 * graph.size
+
+
+@pytest.mark.parametrize("amount", [10.0, 100.0, 1000.0])
+def test_starch_folds_no_triangle_the_pose_without_it_keeps_open(bar_pushed_together, amount):
+    """A bar pushed to a quarter of its length buckles without folding; starching its middle
+    folded 1, 2 and 9 triangles (the stiffer energy overpowered the penalty there)."""
+    graph, handles, targets = bar_pushed_together
+    plain = solver.Deformer(graph, handles, prevent_flips=True).solve(targets, max_iterations=200).positions
+    assert folded(graph, plain) == 0
+    stiffness = np.ones(graph.n)
+    stiffness[np.abs(graph.points[:, 0] - 4.0) < 2.0] = amount
+    starched = solver.Deformer(graph, handles, prevent_flips=True, stiffness=stiffness).solve(
+        targets, max_iterations=200).positions
+    assert folded(graph, starched) == 0
+
+
+@pytest.fixture
+def bar_pushed_together():
+    graph = solver.build_graph([np.array([[0.0, 0.0], [8.0, 0.0], [8.0, 1.0], [0.0, 1.0]])], spacing=0.2)
+    left, right = np.flatnonzero(graph.points[:, 0] < 0.3), np.flatnonzero(graph.points[:, 0] > 7.7)
+    targets = np.concatenate([graph.points[left], graph.points[right] - [6.0, 0.0]])
+    return graph, np.concatenate([left, right]), targets
