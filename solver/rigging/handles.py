@@ -212,9 +212,10 @@ def distance_off(points, triangles, point):
 
 
 def _layer_at(posed_points, posed_heights, triangles, point, height):
-    """Where the posed shape lies under ``point`` (2,) in the layer nearest ``height``: the
-    containing triangle (t,) index and barycentric weights (3,), or None where no triangle
-    contains it. Where the pose folds the shape over itself several do, one per layer."""
+    """Where the posed shape lies under ``point`` (2,) in the layer nearest ``height`` (the one
+    in front where ``height`` is under them all): the containing triangle's index and its
+    barycentric weights (3,), or None where no triangle contains it. Where the pose folds the
+    shape over itself several do, one per layer."""
     corners = np.asarray(posed_points, dtype=np.float64)[triangles]          # (t, 3, 2)
     a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
     e1, e2, d = b - a, c - a, point - a
@@ -227,7 +228,12 @@ def _layer_at(posed_points, posed_heights, triangles, point, height):
     if not len(inside):
         return None
     layer_heights = np.einsum("tk,tk->t", weights[inside], np.asarray(posed_heights, dtype=np.float64)[triangles[inside]])
-    best = inside[np.argmin(np.abs(layer_heights - height))]
+    # Float32 places and the modifier's own interpolation are off the layers by a hair.
+    hair = 1e-5 * float(np.ptp(np.asarray(posed_points, dtype=np.float64), axis=0).max(initial=0.0))
+    if height < layer_heights.min() - hair:  # under every layer (on the plane, as handles are): the one in front
+        best = inside[np.argmax(layer_heights)]
+    else:
+        best = inside[np.argmin(np.abs(layer_heights - height))]
     return best, weights[best]
 
 
@@ -249,8 +255,8 @@ def place(plane, space, location, rest_points, posed_points, triangles, on_rest=
     posed_heights : (n,) array_like, optional
         Graph points' heights off the plane as posed (the depth that orders a fold's layers):
         where the pose folds the shape over itself, the handle goes on the layer whose height
-        is nearest ``location``'s (the one clicked on), not on whichever the triangulation
-        gives first.
+        is nearest ``location``'s (the one clicked on; the one in front for a location under
+        them all, on the plane), not on whichever the triangulation gives first.
 
     Returns
     -------
