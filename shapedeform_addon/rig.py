@@ -78,9 +78,10 @@ class Rig:
             raise RigError(f"'{obj.name}': {err}") from None
         overlap = rig_format.pin_items(obj, "OVERLAP")
         self.overlap_pins = [empty for empty, _ in overlap]
-        self.overlap_reach = depth.pin_weights(
-            self.graph.points, self.graph.edges, [point for _, point in overlap],
-            [_animated(empty, depsgraph).shapedeform.extent * self.graph.size for empty, _ in overlap])
+        extents = _finite([_animated(empty, depsgraph).shapedeform.extent for empty, _ in overlap],
+                          self.overlap_pins, "Extent")
+        self.overlap_reach = depth.pin_weights(self.graph.points, self.graph.edges, [point for _, point in overlap],
+                                               extents * self.graph.size)
         self.in_front = np.zeros(len(overlap))
         self.signature = signature(obj, depsgraph)
         # The pose shown (the cage's, as saved or last written): graph positions (n, 2) and the
@@ -120,10 +121,13 @@ class Rig:
     def _stiffness(self, obj, depsgraph=None):
         """Per graph point, 1 plus each starch pin's stiffness times its reach; None without pins.
         Keeps the pins' reach (``starch_reach``, (k, n)) and amounts (``starch``, (k,))."""
-        pins = [(_animated(empty, depsgraph).shapedeform, point) for empty, point in rig_format.pin_items(obj, "STARCH")]
+        items = rig_format.pin_items(obj, "STARCH")
+        pins = [(_animated(empty, depsgraph).shapedeform, point) for empty, point in items]
+        empties = [empty for empty, _ in items]
+        extents = _finite([pin.extent for pin, _ in pins], empties, "Extent")
         self.starch_reach = depth.pin_weights(self.graph.points, self.graph.edges, [point for _, point in pins],
-                                              [pin.extent * self.graph.size for pin, _ in pins])
-        self.starch = np.array([pin.stiffness for pin, _ in pins], dtype=np.float64)
+                                              extents * self.graph.size)
+        self.starch = _finite([pin.stiffness for pin, _ in pins], empties, "Stiffness")
         return depth.stiffness(self.starch, self.starch_reach)
 
     def pin_amounts(self, depsgraph=None):
@@ -136,6 +140,16 @@ class Rig:
         score = depth.moved_score(self.graph.points, positions, self.graph.size)
         lift = depth.heights(score, self.graph.size, self.in_front, self.overlap_reach)
         return self.plane.to_3d(positions, lift).astype(np.float32)
+
+
+def _finite(values, pins, label):
+    """``values`` (k,) float64, the pins' ``label`` values; RigError naming the pins where one
+    is not a finite number (only Python can set one so)."""
+    values = np.asarray(values, dtype=np.float64).reshape(-1)
+    bad = [pin.name for pin, value in zip(pins, values) if not np.isfinite(value)]
+    if bad:
+        raise RigError(f"{', '.join(repr(name) for name in bad)}: its {label} is not a finite number")
+    return values
 
 
 def _weight_label(term):
@@ -258,7 +272,7 @@ def pose(obj, depsgraph=None, final=None):
     settings = owner.shapedeform
     budgets = _animated(owner, depsgraph).shapedeform
     final = final_quality() if final is None else final
-    rig.in_front = rig.pin_amounts(depsgraph)
+    rig.in_front = _finite(rig.pin_amounts(depsgraph), rig.overlap_pins, "In Front")
     try:
         positions = rig.solve(frames, budgets.render_iterations if final else budgets.iterations)
         points = rig.cage_points(positions)

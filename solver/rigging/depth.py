@@ -34,9 +34,13 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-__all__ = ["HEIGHT_PER_SCORE", "AUTO_WEIGHT", "EDGE", "moved_score", "pin_weights", "heights"]
+__all__ = ["HEIGHT_PER_SCORE", "MAX_SCORE", "AUTO_WEIGHT", "EDGE", "moved_score", "pin_weights", "heights"]
 
 HEIGHT_PER_SCORE = 0.02
+# Pins' amounts add up without bound (an In Front typed as -1000 put the bar 20 of its sizes
+# behind its plane): the order saturates at a lift of the shape's size, within which a drawing's
+# stroke order still reads its layers (its rays start two sizes off the plane).
+MAX_SCORE = 1.0 / HEIGHT_PER_SCORE
 AUTO_WEIGHT = 0.5
 EDGE = 0.3
 
@@ -114,7 +118,7 @@ def heights(score, size, pin_amounts=None, weights=None):
     total = np.asarray(score, dtype=np.float64).copy()
     if pin_amounts is not None and len(pin_amounts):
         total += np.asarray(pin_amounts, dtype=np.float64) @ np.asarray(weights, dtype=np.float64)
-    return HEIGHT_PER_SCORE * size * total
+    return HEIGHT_PER_SCORE * size * np.clip(total, -MAX_SCORE, MAX_SCORE)
 
 
 def stiffness(amounts, weights):

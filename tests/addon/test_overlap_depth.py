@@ -171,7 +171,7 @@ def test_a_pin_added_where_the_pose_overlaps_itself_goes_on_the_layer_clicked(ad
     """Clicked on the arm where it lies over the torso (the arm's place, in front), an overlap
     pin binds to the arm: it was bound to whichever layer's triangle the triangulation gave
     first, the torso's at all 11 such places tried, so -1 sank the torso and +1 lifted it over
-    the arm. Given the torso's height there, it binds to the torso."""
+    the arm. Clicked on the torso beside it, under the arm, it binds to the torso."""
     obj, arm = figure()
     swing_arm_across(obj)
     bpy.context.scene.frame_set(10)
@@ -183,7 +183,7 @@ def test_a_pin_added_where_the_pose_overlaps_itself_goes_on_the_layer_clicked(ad
     rest_of = addon.shapedeform_addon.rig_format.rest_of(obj.shapedeform.cage)
     for k in np.flatnonzero(over_torso)[:6]:
         below = np.flatnonzero(torso)[np.argmin(np.linalg.norm(posed[torso, :2] - posed[k, :2], axis=1))]
-        for location, on_the_arm in ((posed[k], True), ((*posed[k, :2], posed[below, 2]), False)):
+        for location, on_the_arm in ((posed[k], True), (posed[below], False)):
             checks.select_only(obj)
             assert bpy.ops.shapedeform.add_handle(location=tuple(location), kind="OVERLAP") == {"FINISHED"}
             pin = obj.shapedeform.handles[-1]
@@ -333,10 +333,18 @@ def test_a_grease_pencil_overlap_pin_puts_the_arm_in_front_or_behind(addon):
     assert bpy.ops.shapedeform.add_handle(location=tuple(tip.matrix_world.translation), kind="OVERLAP") == {"FINISHED"}
     pin = figure.shapedeform.handles[-1].object
     body, arm, eye = range(3)
-    for amount, order in ((1.0, [body, eye, arm]), (-1.0, [arm, body, eye]), (1.0, [body, eye, arm])):
+    # However large the amount (-150 and +100 inverted the order: the lift left the reach of the
+    # rays that read the layers), and however the pins add up.
+    for amount, order in ((1.0, [body, eye, arm]), (-1.0, [arm, body, eye]), (1.0, [body, eye, arm]),
+                          (-1000.0, [arm, body, eye]), (1000.0, [body, eye, arm])):
         pin.shapedeform.in_front = amount
         bpy.context.view_layer.update()
         assert list(drawn_order(figure, "Fills")) == order, amount
+    assert np.all(np.isfinite(checks.evaluated_drawing_points(figure)))
+    pin.shapedeform.in_front = float("nan")  # only Python can: named, the last pose kept
+    bpy.context.view_layer.update()
+    assert f"'{pin.name}': its In Front is not a finite number" in figure.shapedeform.status
+    assert np.all(np.isfinite(checks.evaluated_drawing_points(figure)))
 
 
 def figure_seen_from_the_front(overlay=False):
