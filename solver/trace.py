@@ -22,7 +22,8 @@ def coverage(image):
     Parameters
     ----------
     image : (H, W) bool or number array, or (H, W, C) array
-        A mask or grey image, or colour with alpha in the last channel (C = 2 or 4).
+        A mask or grey image, or colour with alpha in the last channel (C = 2 or 4): 0 and 1
+        (any type), floats from 0 to 1, or uint8 or uint16 over their full range.
 
     Returns
     -------
@@ -31,7 +32,8 @@ def coverage(image):
     Raises
     ------
     ValueError
-        An array of another shape, with no pixels, or with NaN values.
+        An array of another shape, with no pixels, with NaN values, or of another integer
+        type with values other than 0 and 1.
     """
     image = np.asarray(image)
     if image.ndim == 3:
@@ -43,7 +45,11 @@ def coverage(image):
     if min(image.shape) < 1:
         raise ValueError(f"image has no pixels: {image.shape}")
     values = image.astype(np.float64)
-    if np.issubdtype(image.dtype, np.integer) and not np.issubdtype(image.dtype, np.bool_):
+    if np.issubdtype(image.dtype, np.integer) and not np.issubdtype(image.dtype, np.bool_) \
+            and not np.all((image == 0) | (image == 1)):  # 0 and 1: a mask, whatever its type
+        if image.dtype not in (np.uint8, np.uint16):
+            raise ValueError(f"an integer image of type {image.dtype} (values {image.min()} to {image.max()}) has "
+                             "no full scale: pass a mask of 0 and 1, floats from 0 to 1, or uint8 or uint16 pixels")
         values /= float(np.iinfo(image.dtype).max)
     if not np.all(np.isfinite(values)):
         raise ValueError("image has NaN or infinite values")
@@ -58,8 +64,8 @@ def trace_silhouette(image, level=0.5, tolerance=0.5, max_vertices=None, min_are
     image : array_like
         See :func:`coverage`: a mask, a grey image, or colour with alpha.
     level : float
-        Coverage threshold, in the same units as a float image (integer images are scaled to
-        [0, 1] first).
+        Coverage threshold, in the same units as a float image (uint8 and uint16 images are
+        scaled to [0, 1] first; a mask of 0 and 1 of any type is taken as it is).
     tolerance : float
         Simplification tolerance in pixels (Douglas-Peucker, topology kept). 0 keeps every
         marching-squares vertex.

@@ -104,3 +104,20 @@ def test_bad_points_are_refused(horse_graph):
         solver.bind(horse_graph, [[0.0, np.nan]])
     with pytest.raises(ValueError, match="shape"):
         solver.bind(horse_graph, np.zeros((3, 3)))
+
+
+@pytest.mark.parametrize("convert", [lambda m: m.astype(int), lambda m: m.astype(np.uint8), lambda m: m.astype(np.int32),
+                                     lambda m: m.astype(int).tolist()])
+def test_a_mask_of_zeros_and_ones_traces_whatever_its_integer_type(convert):
+    """An int64, int32 or uint8 mask of 0 and 1 (or a list of them) was divided by its type's
+    largest value and found 'fully transparent'."""
+    mask = np.zeros((20, 30), bool)
+    mask[5:15, 5:25] = True
+    expected = solver.trace_silhouette(mask)
+    got = solver.trace_silhouette(convert(mask))
+    assert len(got) == len(expected) and np.allclose(got[0], expected[0])
+
+
+def test_an_integer_image_without_a_full_scale_is_refused_by_name():
+    with pytest.raises(ValueError, match="integer image of type int64 .*no full scale"):
+        solver.trace_silhouette(np.full((8, 8), 255, dtype=np.int64))
