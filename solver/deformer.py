@@ -12,6 +12,7 @@ changes right-hand sides.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -119,12 +120,13 @@ class Deformer:
                  prevent_flips=False, options=None, coarse_copies=None, stiffness=None,
                  normalise_density=True):
         self.graph = graph
+        self._lock = threading.Lock()
         self.options = Options() if options is None else options
         if not isinstance(self.options, Options):
             raise ValueError(f"options must be a solver.Options, got {type(self.options).__name__}")
         self.prevent_flips = bool(prevent_flips)
         self.preserve_area = bool(preserve_area)
-        handles = np.asarray(handles, dtype=np.int64).ravel()
+        handles = np.array(handles, dtype=np.int64).ravel()  # a copy: the caller's may change
         if len(handles) and (handles.min() < 0 or handles.max() >= graph.n):
             raise ValueError(f"handle indices must be in [0, {graph.n}), got {handles.min()}..{handles.max()}")
         if len(np.unique(handles)) != len(handles):
@@ -256,6 +258,13 @@ class Deformer:
             Targets of the wrong shape or not finite; with ``preserve_area``, no pose with the rest
             area found near the start.
         """
+        # A solve keeps its working state on the deformer, and the factorisation releases the
+        # interpreter's lock: two threads solving at once got each other's poses, then crashed
+        # the process. Solves of one deformer take turns; separate deformers run in parallel.
+        with self._lock:
+            return self._solve(targets, max_iterations, tolerance, initial)
+
+    def _solve(self, targets, max_iterations, tolerance, initial):
         targets = np.asarray(targets, dtype=np.float64)
         if targets.shape != (len(self.handles), 2):
             raise ValueError(f"targets must have shape ({len(self.handles)}, 2), got {targets.shape}")

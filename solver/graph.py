@@ -167,7 +167,7 @@ class Graph:
 
 
 def _index_array(values, n, what):
-    values = np.asarray(values, dtype=np.int64).ravel()
+    values = np.array(values, dtype=np.int64).ravel()  # a copy: the caller's may change
     if len(values) and (values.min() < 0 or values.max() >= n):
         raise ValueError(f"{what} refers to points that do not exist")
     return values
