@@ -100,6 +100,8 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     except ValueError as err:
         raise RigError(f"'{obj.name}': {err}") from None
     if kind != "POSITION":
+        if notes is not None and distance_off(rig.posed, graph.triangles, point) > 1e-4 * graph.size:
+            notes.append(f"the {kind.lower()} pin was added off the shape: it is on the shape's nearest point")
         return _add_pin(obj, rig, int(select_region(graph.points, rest_centre, 0.0, minimum=1)[0]), kind)
     taken = np.zeros(graph.n, dtype=bool)
     taken[rig.indices] = True
@@ -393,6 +395,11 @@ def remove_all(obj):
         shared = any(o.shapedeform.handle_collection == collection for o in bpy.data.objects)
         if len(collection.objects) == 0 and len(collection.children) == 0 and not shared:
             bpy.data.collections.remove(collection)
+
+
+def listed(obj, empty):
+    """Whether ``empty`` is in the handle list of ``obj``'s rig (a copy of a handle is not)."""
+    return any(item.object == empty for item in obj.shapedeform.handles)
 
 
 def rig_of(empty):

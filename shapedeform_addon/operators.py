@@ -140,6 +140,10 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
         local = sources.module_for(active).selected(active)
         if len(local) == 0:
             raise RigError("Select points of the shape, or give a location")
+        if self.kind != "POSITION":
+            # One pin for the selection (a pin per point would add up: 63 of them lifted a hand
+            # by more than the shape's size), on its point nearest the selection's centre.
+            local = local[[np.argmin(np.linalg.norm(local - local.mean(axis=0), axis=1))]]
         # Through the owner's matrix: a duplicate that follows its rig shares the owner's rest
         # shape in its own local coordinates, wherever the duplicate stands.
         return transform_points(obj.matrix_world, local)
@@ -180,9 +184,14 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
             except RigError as err:
                 self.report({"ERROR"}, str(err))
                 return {"CANCELLED"}
+        removed = 0
         for owner in owners:
-            handles.remove(owner, set(selected))
+            removed += handles.remove(owner, set(selected))
             rig.pose_safely(owner, context.evaluated_depsgraph_get())
+        if not removed:  # copies of handles (Shift+D): they name a rig, which does not list them
+            self.report({"ERROR"}, f"{', '.join(repr(o.name) for o in selected)}: not in the handle list of "
+                                   "its rig (a copy of a handle?); it moves nothing: delete it with X")
+            return {"CANCELLED"}
         return {"FINISHED"}
 
 

@@ -68,7 +68,9 @@ def _pin_reach_changed(self, context):
     owner = self.rig
     if owner is not None and owner.shapedeform.is_bound:
         rig.invalidate(owner)
-        rig.pose_safely(owner, context.evaluated_depsgraph_get())
+        if not rig.pose_safely(owner, context.evaluated_depsgraph_get()) and self.pin_kind != "POSITION":
+            # Its sphere or cube shows the extent, as it did when the pin was added.
+            self.id_data.empty_display_size = self.extent * rig.get(owner).graph.size
 
 
 # Rig state and bind-time choices: keying them would animate nothing (or break the rig), so they

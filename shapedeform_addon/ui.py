@@ -57,6 +57,10 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
             layout.label(text=f"'{obj.name}' is not in this scene (deleted?): Unbind removes its rig", icon="INFO")
         if settings.status:
             layout.label(text=settings.status, icon="ERROR")
+        if active is not obj and active.type == "EMPTY" and not handles.listed(obj, active):
+            # A copy of a handle or pin (Shift+D) names the rig but is in no list of it.
+            layout.label(text=f"'{active.name}' is not one of the rig's handles (a copy?): it moves nothing",
+                         icon="INFO")
         if handles.locked_by_override(obj):
             layout.operator("shapedeform.make_handles_editable", icon="LIBRARY_DATA_OVERRIDE")
         _draw_handles(layout, settings)

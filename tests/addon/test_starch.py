@@ -117,3 +117,43 @@ def test_starch_pins_show_in_the_sidebar_and_overlay(addon):
     data = addon.shapedeform_addon.overlay.drawing_data(obj)
     blue = data["reach_colors"][:, 2] > data["reach_colors"][:, 0]
     assert blue.sum() > 10 and np.all(np.abs(data["reach"][blue, 0]) < 0.25 * 8.07)
+
+
+@pytest.mark.parametrize("kind", ["OVERLAP", "STARCH"])
+def test_pins_added_at_a_selection_copied_or_off_the_shape(addon, capsys, kind):
+    """Edit Mode with a hand's points selected adds one pin for them (it added a pin per point,
+    and 63 overlap pins at 1 lifted the hand 1.26 of the shape's size); a pin's shape follows its
+    extent; a pin added off the shape says where it went; Remove on a copy of a pin (Shift+D,
+    which the rig does not list) says so rather than report that it removed it."""
+    obj, _ = bar()
+    points = checks.mesh_points(obj)
+    selected = points[:, 0] > 2.5
+    obj.data.vertices.foreach_set("select", selected)
+    for elements in (obj.data.edges, obj.data.polygons):  # Edit Mode would flush their selection
+        elements.foreach_set("select", np.zeros(len(elements), bool))
+    before = len(obj.shapedeform.handles)
+    checks.select_only(obj)
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.shapedeform.add_handle(kind=kind) == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert len(obj.shapedeform.handles) == before + 1
+    pin = obj.shapedeform.handles[-1].object
+    bpy.context.view_layer.update()
+    assert abs(pin.matrix_world.translation.x - points[selected, 0].mean()) < 0.2
+    size = pin.empty_display_size / pin.shapedeform.extent
+    pin.shapedeform.extent = 0.5
+    assert abs(pin.empty_display_size - 0.5 * size) < 1e-6 * size
+
+    checks.select_only(obj)
+    capsys.readouterr()
+    assert bpy.ops.shapedeform.add_handle(location=(10.0, 10.0, 0.0), kind=kind) == {"FINISHED"}
+    assert "pin was added off the shape: it is on the shape's nearest point" in capsys.readouterr().out
+
+    checks.select_only(pin)
+    assert bpy.ops.object.duplicate() == {"FINISHED"}
+    copy = bpy.context.active_object
+    assert copy != pin and copy.shapedeform.rig == obj
+    count = len(obj.shapedeform.handles)
+    with pytest.raises(RuntimeError, match="not in the handle list of its rig \\(a copy of a handle\\?\\)"):
+        bpy.ops.shapedeform.remove_handle()
+    assert len(obj.shapedeform.handles) == count
