@@ -21,11 +21,16 @@ from .shapes import geometry_rings, nesting_depth, shape_geometry, signed_area
 from .triangulate import (conforming_triangulation, edges_of_triangles, filtered_delaunay,
                           orient_counter_clockwise)
 
-__all__ = ["Graph", "build_graph", "default_spacing"]
+__all__ = ["Graph", "build_graph", "default_spacing", "spacing_for"]
 
 # Target number of lattice points for the default spacing: the paper's shapes have 160-260
 # interior points (Table 1); we aim a little higher so thin limbs still get a row of points.
 DEFAULT_LATTICE_POINTS = 300
+# The boundary gets at most this many times as many points at the default spacing: a sliver's
+# area alone asks for a spacing that lines it with tens of thousands (a bar 1e6 times longer than
+# wide: 34,644 points, a minute to triangulate; 1e7: over ten minutes). Shapes with any body
+# (the paper's, glyphs, traced drawings, thin limbs) have far fewer and are unchanged.
+MAX_BOUNDARY_SHARE = 4
 # Ring vertices closer than this fraction of the spacing are merged (see _merge_close).
 NEAR_DUPLICATE = 0.01
 
@@ -185,8 +190,16 @@ def _orient_loops(points, loops):
 
 
 def default_spacing(geometry):
-    """Lattice spacing giving about ``DEFAULT_LATTICE_POINTS`` points inside the shape."""
-    return float(np.sqrt(geometry.area / DEFAULT_LATTICE_POINTS))
+    """Lattice spacing giving about ``DEFAULT_LATTICE_POINTS`` points inside the shape (see
+    :func:`spacing_for`)."""
+    return spacing_for(geometry, DEFAULT_LATTICE_POINTS)
+
+
+def spacing_for(geometry, count):
+    """Lattice spacing giving about ``count`` points inside the shape ``geometry`` (a shapely
+    geometry), and no more than ``MAX_BOUNDARY_SHARE`` times as many along its boundary."""
+    by_area = np.sqrt(geometry.area / count)
+    return float(max(by_area, geometry.length / (MAX_BOUNDARY_SHARE * count)))
 
 
 def _merge_close(ring, tolerance):

@@ -23,9 +23,11 @@ def spacing_for_count(rings, count):
     -------
     float
     """
+    from .graph import spacing_for
+
     if count < 1:
         raise ValueError(f"count must be positive, got {count}")
-    return float(np.sqrt(shape_geometry(rings).area / count))
+    return spacing_for(shape_geometry(rings), count)
 
 
 def simplify_rings(rings, tolerance):

@@ -77,3 +77,23 @@ def test_vertices_a_hair_apart_are_merged_and_dense_rings_keep_their_outline():
     dense = disk(count=20000)  # steps of 3e-4, far below the merge distance
     graph = solver.build_graph([dense], spacing=0.1)
     assert graph.area() == pytest.approx(solver.shapes.shape_geometry([dense]).area, rel=1e-4)
+
+
+@pytest.mark.parametrize("aspect", [1e-4, 1e-6, 1e-7])
+def test_a_sliver_gets_a_bounded_number_of_points(aspect):
+    """Its area alone asked for a spacing that lined a bar 1e6 times longer than wide with
+    34,644 points (a minute to triangulate; 1e7: over ten minutes)."""
+    from solver.graph import DEFAULT_LATTICE_POINTS, MAX_BOUNDARY_SHARE
+    bar = [np.array([[0.0, 0.0], [1.0, 0.0], [1.0, aspect], [0.0, aspect]])]
+    limit = MAX_BOUNDARY_SHARE * DEFAULT_LATTICE_POINTS + 8
+    assert solver.build_graph(bar).n <= limit
+    assert solver.outline.outline_graph(bar, DEFAULT_LATTICE_POINTS).n <= limit
+
+
+def test_shapes_with_a_body_keep_the_spacing_their_area_gives():
+    from benchmarks.random_drags import SHAPES
+    from solver.graph import DEFAULT_LATTICE_POINTS, default_spacing
+    from solver.shapes import shape_geometry
+    for name, make in SHAPES.items():
+        geometry = shape_geometry(make())
+        assert default_spacing(geometry) == pytest.approx(np.sqrt(geometry.area / DEFAULT_LATTICE_POINTS), rel=1e-12), name
