@@ -4,8 +4,6 @@ that gives about that many points, and the outline simplified to it.
 
 from __future__ import annotations
 
-import numpy as np
-
 from .shapes import shape_geometry
 
 __all__ = ["spacing_for_count", "simplify_rings", "outline_graph"]
