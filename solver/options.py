@@ -9,7 +9,10 @@ minimised, these change how.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, fields
+
+import numpy as np
 
 __all__ = ["Options"]
 
@@ -109,9 +112,12 @@ class Options:
     def __post_init__(self):
         for item in fields(self):
             value = getattr(self, item.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
+            # numpy's numbers too; a whole float is taken for an integer field (30.0 passed
+            # here, then failed inside the solve with Python's own TypeError).
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
                 raise ValueError(f"Options.{item.name} must be a number, got {value!r}")
             if item.type == "int" and int(value) != value:
                 raise ValueError(f"Options.{item.name} must be a whole number, got {value!r}")
             if not value >= 0 or value == float("inf"):
                 raise ValueError(f"Options.{item.name} must be finite and >= 0, got {value!r}")
+            object.__setattr__(self, item.name, int(value) if item.type == "int" else float(value))

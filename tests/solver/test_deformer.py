@@ -745,3 +745,15 @@ def test_a_deformer_keeps_its_own_handles():
     before = deformer.solve(targets).positions
     handles[:] = [1, 6, 18, 101, 201]
     assert deformer.solve(targets).positions.tobytes() == before.tobytes()
+
+
+def test_options_take_numpy_numbers_and_whole_floats_for_counts():
+    """``max_iterations=30.0`` passed the check, then the solve failed on Python's own
+    TypeError; a numpy integer was refused as 'not a number'."""
+    options = solver.Options(max_iterations=30.0, history=np.int64(4), tolerance=np.float32(1e-4))
+    assert type(options.max_iterations) is int and type(options.history) is int and type(options.tolerance) is float
+    graph = solver.build_graph([disk()])
+    handles = np.flatnonzero(graph.points[:, 0] < -0.8)
+    assert solver.Deformer(graph, handles, options=options).solve(graph.points[handles] + 0.1).iterations <= 30
+    with pytest.raises(ValueError, match="Options.max_iterations must be a whole number"):
+        solver.Options(max_iterations=30.5)
