@@ -142,6 +142,10 @@ class Deformer:
         self.free = self.unknowns.free
         self._folds = self._area = None
         self._starts = []
+        if self.preserve_area and not np.isin(graph.boundary, self.free).any():
+            # Every point a handle included: the targets alone would set the area.
+            raise ValueError("preserve_area needs a boundary point that can move: every boundary point is "
+                             "a handle or lies on an island without handles, which stays at rest")
         if len(self.free):
             self._build(weights, newton, CoarseCopies() if coarse_copies is None else coarse_copies, stiffness)
 
@@ -188,9 +192,6 @@ class Deformer:
             self._starts.append(CoarseStart(graph, self.handles, coarse, make_deformer))
         if self.preserve_area:
             self._area = AreaConstraint(graph, self.free, unknowns.fixed)
-            if not np.isin(graph.boundary, self.free).any():
-                raise ValueError("preserve_area needs a boundary point that can move: every boundary point is "
-                                 "a handle or lies on an island without handles, which stays at rest")
 
     def _coarse_copy(self, copies):
         """The coarse copy a solve starts from: above ``options.coarse_start_points`` points the

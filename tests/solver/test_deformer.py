@@ -757,3 +757,12 @@ def test_options_take_numpy_numbers_and_whole_floats_for_counts():
     assert solver.Deformer(graph, handles, options=options).solve(graph.points[handles] + 0.1).iterations <= 30
     with pytest.raises(ValueError, match="Options.max_iterations must be a whole number"):
         solver.Options(max_iterations=30.5)
+
+
+@pytest.mark.parametrize("held", ["boundary", "every point"])
+def test_preserve_area_with_no_boundary_point_free_is_refused(held):
+    """With every point a handle it returned the targets, area and all (x4), silently."""
+    graph = solver.build_graph([disk()])
+    handles = graph.boundary if held == "boundary" else np.arange(graph.n)
+    with pytest.raises(ValueError, match="preserve_area needs a boundary point that can move"):
+        solver.Deformer(graph, handles, preserve_area=True)
