@@ -126,7 +126,13 @@ class Deformer:
             raise ValueError(f"options must be a solver.Options, got {type(self.options).__name__}")
         self.prevent_flips = bool(prevent_flips)
         self.preserve_area = bool(preserve_area)
-        handles = np.array(handles, dtype=np.int64).ravel()  # a copy: the caller's may change
+        given = np.asarray(handles)
+        if given.dtype == bool:
+            raise ValueError("handles are point indices, got a boolean mask (np.flatnonzero(mask) gives them)")
+        if given.size and not np.issubdtype(given.dtype, np.integer) and \
+                not np.all(np.isfinite(given.astype(np.float64)) & (given == np.round(given))):
+            raise ValueError(f"handles are point indices (whole numbers), got {given.ravel()[:5]}")
+        handles = np.array(given, dtype=np.int64).ravel()  # a copy: the caller's may change
         if len(handles) and (handles.min() < 0 or handles.max() >= graph.n):
             raise ValueError(f"handle indices must be in [0, {graph.n}), got {handles.min()}..{handles.max()}")
         if len(np.unique(handles)) != len(handles):

@@ -164,6 +164,8 @@ class Energy:
 
     def __init__(self, graph, weights=None, stiffness=None, reference_spacing=None):
         self.weights = dict(DEFAULT_WEIGHTS)
+        if weights is not None and not isinstance(weights, dict):
+            raise ValueError(f"weights must be a dict of the terms {sorted(DEFAULT_WEIGHTS)}, got {weights!r}")
         for key, value in (weights or {}).items():
             if key not in DEFAULT_WEIGHTS:
                 raise ValueError(f"unknown energy term {key!r}; the terms are {sorted(DEFAULT_WEIGHTS)}")

@@ -766,3 +766,16 @@ def test_preserve_area_with_no_boundary_point_free_is_refused(held):
     handles = graph.boundary if held == "boundary" else np.arange(graph.n)
     with pytest.raises(ValueError, match="preserve_area needs a boundary point that can move"):
         solver.Deformer(graph, handles, preserve_area=True)
+
+
+@pytest.mark.parametrize("handles, weights, message", [
+    (lambda g: g.points[:, 0] < -0.8, None, "got a boolean mask"),
+    (lambda g: np.array([0.0, 1.7]), None, "whole numbers"),
+    (lambda g: [0, 1], [1, 2, 3], "weights must be a dict"),
+])
+def test_common_mistakes_are_named(handles, weights, message):
+    """A mask was read as 'a point given as a handle twice', 1.7 was cut to 1, a list of
+    weights raised AttributeError."""
+    graph = solver.build_graph([disk()])
+    with pytest.raises(ValueError, match=message):
+        solver.Deformer(graph, handles(graph), weights)
