@@ -146,12 +146,13 @@ def on_frame_change(scene, depsgraph):
     owners = [o for o in rig_format.owners(scene) if o.shapedeform.handles]
     interactive = _interactive()
     if interactive:
-        view_layer = bpy.context.view_layer
-        hidden = {o.session_uid for o in owners if _unseen(o, view_layer)}
+        view_layer, seen = bpy.context.view_layer, []
         for obj in owners:
-            if obj.session_uid in hidden:
+            if _unseen(obj, view_layer):
                 rig.defer(obj)
-        owners = [o for o in owners if o.session_uid not in hidden]
+            else:
+                seen.append(obj)
+        owners = seen
     _pose(owners, depsgraph, final=not interactive)
     if interactive:
         _refine_later()
