@@ -133,10 +133,13 @@ def check_frames(frame_start, frame_end, step=1):
 
 
 def frame_list(frame_start, frame_end, step=1):
-    """The frames a bake poses; ValueError naming the problem for a bad range."""
+    """The frames a bake poses: every ``step``-th from the first, and the last (which a step
+    that does not land on it would leave holding the pose of the frame before); ValueError
+    naming the problem for a bad range."""
     frame_start, frame_end, step = int(frame_start), int(frame_end), int(step)
     check_frames(frame_start, frame_end, step)
-    return list(range(frame_start, frame_end + 1, step))
+    frames = list(range(frame_start, frame_end + 1, step))
+    return frames if frames[-1] == frame_end else frames + [frame_end]
 
 
 class Bake:
@@ -270,7 +273,7 @@ def bake_objects(objects, frame_start, frame_end, step=1, *, scene=None, progres
     frame_start, frame_end : int
         First and last frame, both baked.
     step : int
-        Bake every ``step``-th frame.
+        Bake every ``step``-th frame from ``frame_start``, and ``frame_end``.
     scene : bpy.types.Scene, optional
         Defaults to the context's scene.
     progress : callable(done, total), optional
@@ -330,10 +333,12 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     # Not remembered between bakes: unset, they are the scene's frame range at the time.
+    # Soft limits only: a hard one would clamp a range past Blender's frames and bake what is
+    # left without a word; execute refuses it by name.
     frame_start: IntProperty(name="Start", description="First frame to bake (default: the scene's)", default=1,
-                             min=FIRST_FRAME, max=LAST_FRAME, options={"SKIP_SAVE"})
+                             soft_min=FIRST_FRAME, soft_max=LAST_FRAME, options={"SKIP_SAVE"})
     frame_end: IntProperty(name="End", description="Last frame to bake (default: the scene's)", default=250,
-                           min=FIRST_FRAME, max=LAST_FRAME, options={"SKIP_SAVE"})
+                           soft_min=FIRST_FRAME, soft_max=LAST_FRAME, options={"SKIP_SAVE"})
     step: IntProperty(name="Step", description="Bake every n-th frame", default=1, min=1)
 
     @classmethod

@@ -517,9 +517,22 @@ def test_a_bake_past_blenders_last_frame_is_refused(addon):
         with pytest.raises(ValueError, match="run past Blender's"):
             bake.bake_objects([obj], start, end)
     assert cage_keys(obj) == []
-    rna = bpy.ops.shapedeform.bake.get_rna_type().properties
-    assert (rna["frame_end"].hard_min, rna["frame_end"].hard_max) == (bake.FIRST_FRAME, bake.LAST_FRAME) == (
-        -1048574, 1048574)
+    assert (bake.FIRST_FRAME, bake.LAST_FRAME) == (-1048574, 1048574)
+    # The operator too (its fields' hard limits clamped such a range and baked what was left).
+    bpy.context.view_layer.objects.active = obj
+    for start, end in ((1048570, 1048580), (-1048580, -1048570)):
+        with pytest.raises(RuntimeError, match="run past Blender's"):
+            bpy.ops.shapedeform.bake(frame_start=start, frame_end=end)
+    assert cage_keys(obj) == []
+
+
+def test_a_stepped_bake_bakes_its_last_frame(addon):
+    """Frames 3-10 every 2nd baked 3, 5, 7 and 9: frame 10 held frame 9's pose."""
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bake(frame_start=3, frame_end=10, step=2) == {"FINISHED"}
+    assert cage_keys(obj) == ["Basis", "sd_bake_0003", "sd_bake_0005", "sd_bake_0007", "sd_bake_0009", "sd_bake_0010"]
 
 
 def test_unbinding_a_copy_of_a_baked_rig_leaves_a_file_that_saves(addon, tmp_path):
