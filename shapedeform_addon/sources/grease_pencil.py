@@ -88,12 +88,16 @@ def stroke_order_losses(obj):
     current frame's drawing, so onion skins of its other keyframes vanish from the viewport.
     Lighting matters only where the object uses lights too (the 2D Animation template's objects
     do not). The rebuilt drawings all start at frame 0, so a Build modifier after the rig's,
-    which times strokes from their keyframe, draws nothing, and a drawing keyed before frame 0
+    which times strokes from their keyframe, draws nothing, a Noise modifier's Random re-seeds on
+    other frames, and a drawing keyed before frame 0
     vanishes there.
     """
     layers = list(obj.data.layers)
     stack, ours = list(obj.modifiers), modifiers_of(obj)
-    later = [m for m in stack[stack.index(ours[0]) + 1:] if m.type == "GREASE_PENCIL_BUILD"] if ours else []
+    # Build times strokes from their keyframe; Noise's Random re-seeds every few frames counted
+    # from it (at rest it moved points 0.05 on a drawing 3 tall).
+    later = [m for m in stack[stack.index(ours[0]) + 1:]
+             if m.type == "GREASE_PENCIL_BUILD" or (m.type == "GREASE_PENCIL_NOISE" and m.use_random)] if ours else []
     checks = (
         ("lights on", [layer for layer in layers if layer.use_lights] if obj.use_grease_pencil_lights else []),
         ("onion skins of", [layer for layer in layers if layer.use_onion_skinning and len(layer.frames) > 1]),
@@ -164,7 +168,8 @@ def prepare(obj, settings):
 
     # Stroke Order is on wherever it costs the drawing nothing.
     rigged = [layer for layer, _ in frames]
-    advice = "; ".join(filter(None, (_transformed_layers_advice(rigged), _hidden_layers_advice(rigged, settings))))
+    advice = "; ".join(filter(None, (_transformed_layers_advice(obj, rigged),
+                                       _hidden_layers_advice(rigged, settings))))
     return Prepared(plane, graph, commit, advice=advice, modifier_inputs={ORDER_INPUT: not stroke_order_losses(obj)})
 
 
@@ -178,15 +183,31 @@ def _hidden_layers_advice(layers, settings):
             f"{'it' if len(hidden) == 1 else 'them'} out")
 
 
-def _transformed_layers_advice(layers):
-    """Advice on rigged layers with a transform of their own ("" when none has one): the rig
-    reads and deforms strokes in their layer's space, where the transform has not moved them."""
-    moved = [layer.name for layer in layers
-             if any(layer.translation) or any(layer.rotation) or tuple(layer.scale) != (1.0, 1.0, 1.0)]
+def _transformed_layers_advice(obj, layers):
+    """Advice on rigged layers that a transform of their own or their parent's moves ("" when
+    none is): the rig reads and deforms strokes in their layer's space, where it has not moved
+    them."""
+    moved = [layer.name for layer in layers if not np.allclose(_layer_to_object(obj, layer), np.eye(4), atol=1e-6)]
     if not moved:
         return ""
-    return (f"{', '.join(map(repr, moved))} {'is' if len(moved) == 1 else 'are'} moved by a layer transform: the rig "
-            "works where the strokes lie without it, so put handles there (or apply the layer transform and bind again)")
+    return (f"{', '.join(map(repr, moved))} {'is' if len(moved) == 1 else 'are'} moved by a layer transform or "
+            "parent: the rig works where the strokes lie without it, so put handles there (or apply the layer "
+            "transform, or clear the parent, and bind again)")
+
+
+def _layer_to_object(obj, layer):
+    """(4, 4): where ``layer``'s transform and parent (object or bone) put its strokes in the
+    object's space."""
+    matrix = np.array(layer.matrix_local, dtype=np.float64)
+    parent = layer.parent
+    if parent is None:
+        return matrix
+    parent_world = np.array(parent.matrix_world, dtype=np.float64)
+    bone = parent.pose.bones.get(layer.parent_bone) if parent.type == "ARMATURE" and layer.parent_bone else None
+    if bone is not None:
+        parent_world = parent_world @ np.array(bone.matrix, dtype=np.float64)
+    return np.linalg.inv(np.array(obj.matrix_world, dtype=np.float64)) @ parent_world @ \
+        np.array(layer.matrix_parent_inverse, dtype=np.float64) @ matrix
 
 
 def unbind(obj):

@@ -134,12 +134,28 @@ def test_a_straight_stroke_is_rigged_in_the_drawing_plane(addon, count):
     assert np.abs(moved[:, 1]).max() < 0.05  # in the XZ plane (or barely lifted)
 
 
-def test_bind_warns_about_a_layer_moved_by_its_own_transform(addon, capsys):
+@pytest.mark.parametrize("how", ["transform", "parent moved", "parent in place"])
+def test_bind_warns_about_a_layer_moved_by_its_own_transform_or_parent(addon, capsys, how):
+    """A parent moved since the layer was parented moves its strokes as a layer transform does
+    (handles put on them were a quarter of the shape's size off it), and Bind said nothing."""
     bpy.ops.object.grease_pencil_add(type="MONKEY")
     monkey = bpy.context.active_object
-    monkey.data.layers["Lines"].translation = (2.0, 0.0, 0.0)
+    layer = monkey.data.layers["Lines"]
+    if how == "transform":
+        layer.translation = (2.0, 0.0, 0.0)
+    else:
+        empty = bpy.data.objects.new("Parent", None)
+        bpy.context.scene.collection.objects.link(empty)
+        empty.location = (2.0, 0.0, 0.0)
+        bpy.context.view_layer.update()
+        layer.parent = empty  # which keeps the strokes in place (the parent's inverse)
+        if how == "parent moved":
+            empty.location.x += 1.0
+        bpy.context.view_layer.update()
+    bpy.context.view_layer.objects.active = monkey
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    assert "'Lines' is moved by a layer transform" in capsys.readouterr().out
+    warned = "'Lines' is moved by a layer transform or parent" in capsys.readouterr().out
+    assert warned == (how != "parent in place")
 
 
 def test_a_layer_named_with_a_comma_can_be_chosen_and_hidden_layers_rigged_are_named(addon, capsys):

@@ -182,3 +182,9 @@ def test_a_build_modifier_after_the_rig_is_named_among_what_stroke_order_drops(a
     assert grease_pencil.stroke_order_losses(monkey) == ["the keyframe timing read by 'Build'"]
     monkey.modifiers.move(len(monkey.modifiers) - 1, 0)
     assert monkey.modifiers[0] == build and grease_pencil.stroke_order_losses(monkey) == []
+    # Noise's Random re-seeds every few frames counted from the keyframe: named too (a rig at
+    # rest moved its points 0.05 on a drawing 3 tall).
+    noise = monkey.modifiers.new("Noise", "GREASE_PENCIL_NOISE")
+    assert grease_pencil.stroke_order_losses(monkey) == ["the keyframe timing read by 'Noise'"]
+    noise.use_random = False
+    assert grease_pencil.stroke_order_losses(monkey) == []
