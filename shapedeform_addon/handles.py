@@ -113,26 +113,7 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     matrix = handle_matrix(rig.plane, point)
     offsets = region_offsets(frame_2d(rig.plane, matrix), rig.posed[region])
 
-    empty = bpy.data.objects.new(f"{obj.name} Handle", None)
-    empty.empty_display_type = "CIRCLE"
-    empty.empty_display_size = radius
-    collection(obj).objects.link(empty)
-    cage_local = affine_inverse(np.array(obj.matrix_world, dtype=np.float64)) @ world
-    if obj.type == "CURVE" and obj.data.use_path:
-        # A curve with path animation carries its children along the path (and a child would
-        # depend on the geometry the rig makes): follow its transform alone, by constraint, as
-        # its cage does.
-        follow = empty.constraints.new("CHILD_OF")
-        follow.name, follow.target = FOLLOW, obj
-        follow.inverse_matrix.identity()
-        empty.matrix_basis = Matrix((cage_local @ matrix).tolist())
-    else:
-        # Its own transform in rig space (:func:`keep_in_rig_space`). Matrices, not lists: a
-        # nested list would be read column by column.
-        empty.parent = obj
-        to_object = rig_format.rig_to_object(obj)
-        empty.matrix_parent_inverse = Matrix(to_object.tolist())
-        empty.matrix_basis = Matrix((affine_inverse(to_object) @ cage_local @ matrix).tolist())
+    empty = _new_handle_empty(obj, world @ matrix, radius)
     empty.shapedeform.rig = obj
     off = distance_off(rig.posed, graph.triangles, point)
     if notes is not None and off > radius:
@@ -144,6 +125,31 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     item[rig_format.HANDLE_OFFSETS] = offsets.ravel()
     set_active(settings, len(settings.handles) - 1)
     rigs.invalidate(obj)
+    return empty
+
+
+def _new_handle_empty(obj, rig_matrix, radius):
+    """A handle's Empty at ``rig_matrix`` (4x4, rig space), parented so it follows the owner."""
+    empty = bpy.data.objects.new(f"{obj.name} Handle", None)
+    empty.empty_display_type = "CIRCLE"
+    empty.empty_display_size = radius
+    collection(obj).objects.link(empty)
+    cage_local = affine_inverse(np.array(obj.matrix_world, dtype=np.float64)) @ rig_matrix
+    if obj.type == "CURVE" and obj.data.use_path:
+        # A curve with path animation carries its children along the path (and a child would
+        # depend on the geometry the rig makes): follow its transform alone, by constraint, as
+        # its cage does.
+        follow = empty.constraints.new("CHILD_OF")
+        follow.name, follow.target = FOLLOW, obj
+        follow.inverse_matrix.identity()
+        empty.matrix_basis = Matrix(cage_local.tolist())
+    else:
+        # Its own transform in rig space (:func:`keep_in_rig_space`). Matrices, not lists: a
+        # nested list would be read column by column.
+        empty.parent = obj
+        to_object = rig_format.rig_to_object(obj)
+        empty.matrix_parent_inverse = Matrix(to_object.tolist())
+        empty.matrix_basis = Matrix((affine_inverse(to_object) @ cage_local).tolist())
     return empty
 
 
