@@ -61,6 +61,82 @@ def _filtered(ratio, filtering):
     return np.minimum(1.0 - CLAMP, ratio)
 
 
+def _term_products(families, slot, f):
+    """Where each low-rank term's products land in the Newton matrix.
+
+    Each term contributes c u u^T on its points. The distinct products are laid out flat,
+    family by family; a constant sparse matrix sums (with signs) the products that land on each
+    stored entry, so assembly is one mat-vec. An edge's u is [a, -a, b, -b] on [x_i, x_j, y_i,
+    y_j], so its 16 products are +-c a^2, +-c a b, +-c b^2 (3 stored); the other families store
+    all k x k products.
+
+    Returns
+    -------
+    rows, cols, flat_index : (q,) int ndarray
+        Matrix entry (-1 where a point is not free) and flat product index of each product.
+    signs : (q,) float ndarray
+    """
+    rows, cols, flat_index, signs = [], [], [], []
+    offset = 0
+    for family, points in enumerate(families):
+        stacked = np.concatenate([slot[points], slot[points] + f], axis=1)
+        stacked[np.concatenate([slot[points], slot[points]], axis=1) < 0] = -1
+        count, k = stacked.shape
+        rows.append(np.repeat(stacked, k, axis=1).ravel())
+        cols.append(np.tile(stacked, (1, k)).ravel())
+        if family == 0:
+            axis, sign = np.array([0, 0, 1, 1]), np.array([1.0, -1.0, 1.0, -1.0])
+            kind = (axis[:, None] + axis[None, :]).ravel()           # 0: a a, 1: a b, 2: b b
+            flat_index.append(offset + 3 * np.repeat(np.arange(count), k * k) + np.tile(kind, count))
+            signs.append(np.tile(np.outer(sign, sign).ravel(), count))
+            offset += 3 * count
+        else:
+            flat_index.append(offset + np.arange(count * k * k))
+            signs.append(np.ones(count * k * k))
+            offset += count * k * k
+    return tuple(np.concatenate(parts) for parts in (rows, cols, flat_index, signs))
+
+
+def _pattern(stored, rows, cols, size):
+    """The csc pattern holding ``stored``'s entries and ``(rows, cols)``, and a function giving
+    the position in its values of entries ``(r, c)``."""
+    # From coordinates only: adding sparse matrices is not safe here, as scipy's sum assumes
+    # canonical (sorted, duplicate-free) operands and triu's are not.
+    all_rows = np.concatenate([stored.row, rows]).astype(np.int64)
+    all_cols = np.concatenate([stored.col, cols]).astype(np.int64)
+    shape = coo_matrix((np.ones(len(all_rows)), (all_rows, all_cols)), shape=(size, size)).tocsc()
+    shape.sum_duplicates()
+    shape.sort_indices()
+    keys = shape.indices.astype(np.int64) + size * np.repeat(np.arange(size, dtype=np.int64), np.diff(shape.indptr))
+    return shape, lambda r, c: np.searchsorted(keys, r + size * c)
+
+
+def _curve_group_factors(energy):
+    """The pose-independent part of each curve group's low-rank vector.
+
+    w_k = R J t_k / sqrt(T), with t_k the rest rows and J the quarter turn, and u = A^T w on the
+    group's three points; R is the only part that changes with the pose.
+
+    Returns
+    -------
+    total : (m,) ndarray
+        T, each group's summed squared rest rows.
+    base_x, base_y : (m, 3) ndarray
+        The x and y parts of each corner's factor.
+    """
+    # (m, 3, 2): each vertex's laplacian, to-after and to-before rest rows
+    rest = energy.curve_rest.reshape(3, -1, 2).transpose(1, 0, 2)
+    turned = np.stack([-rest[..., 1], rest[..., 0]], axis=-1)
+    total = np.einsum("gkc,gkc->g", rest, rest)
+    scale = energy.curve_scale / np.sqrt(np.where(total > 0, total, 1.0))
+    # u = A^T w: the group's rows of A are its kinds' factors times the unit stencils.
+    kind = energy.curve_kind_scale
+    lap, ahead, behind = kind[0] * turned[:, 0], kind[1] * turned[:, 1], kind[2] * turned[:, 2]
+    corners = np.stack([lap - ahead - behind, -0.5 * lap + behind, -0.5 * lap + ahead], axis=1)
+    corners *= scale[:, None, None]
+    return total, np.ascontiguousarray(corners[..., 0]), np.ascontiguousarray(corners[..., 1])
+
+
 class Hessian:
     """Projected Newton matrix of an :class:`~solver.energy.Energy` on the free points.
 
@@ -102,45 +178,12 @@ class Hessian:
         families = [energy.length_edges, energy.curve_points]
         if triangles is not None:
             families.append(triangles)
-        # Each term contributes c u u^T on its points. The distinct products are laid out flat,
-        # family by family; a constant sparse matrix sums (with signs) the products that land on
-        # each stored upper-triangle entry, so assembly is one mat-vec. An edge's u is
-        # [a, -a, b, -b] on [x_i, x_j, y_i, y_j], so its 16 products are +-c a^2, +-c a b, +-c b^2
-        # (3 stored); the other families store all k x k products.
-        rows, cols, flat_index, signs = [], [], [], []
-        offset = 0
-        for family, points in enumerate(families):
-            stacked = np.concatenate([slot[points], slot[points] + f], axis=1)
-            stacked[np.concatenate([slot[points], slot[points]], axis=1) < 0] = -1
-            count, k = stacked.shape
-            rows.append(np.repeat(stacked, k, axis=1).ravel())
-            cols.append(np.tile(stacked, (1, k)).ravel())
-            if family == 0:
-                axis, sign = np.array([0, 0, 1, 1]), np.array([1.0, -1.0, 1.0, -1.0])
-                kind = (axis[:, None] + axis[None, :]).ravel()           # 0: a a, 1: a b, 2: b b
-                flat_index.append(offset + 3 * np.repeat(np.arange(count), k * k) + np.tile(kind, count))
-                signs.append(np.tile(np.outer(sign, sign).ravel(), count))
-                offset += 3 * count
-            else:
-                flat_index.append(offset + np.arange(count * k * k))
-                signs.append(np.ones(count * k * k))
-                offset += count * k * k
-        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        rows, cols, flat_index, signs = _term_products(families, slot, f)
         keep = (rows >= 0) & (cols >= 0)
         if upper:
             keep &= rows <= cols
-        flat_index, signs = np.concatenate(flat_index), np.concatenate(signs)
         stored = triu(base, format="coo") if upper else base.tocoo()
-        # Build the pattern from coordinates only: adding sparse matrices is not safe here, as
-        # scipy's sum assumes canonical (sorted, duplicate-free) operands and triu's are not.
-        all_rows = np.concatenate([stored.row, rows[keep]]).astype(np.int64)
-        all_cols = np.concatenate([stored.col, cols[keep]]).astype(np.int64)
-        shape = coo_matrix((np.ones(len(all_rows)), (all_rows, all_cols)), shape=(2 * f, 2 * f)).tocsc()
-        shape.sum_duplicates()
-        shape.sort_indices()
-        keys = shape.indices.astype(np.int64) + shape.shape[0] * np.repeat(
-            np.arange(shape.shape[1], dtype=np.int64), np.diff(shape.indptr))
-        locate = lambda r, c: np.searchsorted(keys, r + shape.shape[0] * c)
+        shape, locate = _pattern(stored, rows[keep], cols[keep], 2 * f)
         self._base = np.bincount(locate(stored.row.astype(np.int64), stored.col.astype(np.int64)),
                                  weights=stored.data, minlength=shape.nnz)
         # Edges and curve groups are all active at every pose: one constant gather matrix sums
@@ -167,20 +210,7 @@ class Hessian:
         self._edge_products = self._products[:3 * count_edges].reshape(count_edges, 3)
         self._group_products = self._products[3 * count_edges:end].reshape(count_groups, 6, 6)
 
-        # Curve groups: w_k = R J t_k / sqrt(T) with t_k the rest rows and J the quarter turn, and
-        # u = A^T w on the group's three points; R is the only part that changes with the pose.
-        # (m, 3, 2): each vertex's laplacian, to-after and to-before rest rows
-        rest = energy.curve_rest.reshape(3, -1, 2).transpose(1, 0, 2)
-        turned = np.stack([-rest[..., 1], rest[..., 0]], axis=-1)
-        self._group_total = np.einsum("gkc,gkc->g", rest, rest)
-        scale = energy.curve_scale / np.sqrt(np.where(self._group_total > 0, self._group_total, 1.0))
-        # u = A^T w: the group's rows of A are its kinds' factors times the unit stencils.
-        kind = energy.curve_kind_scale
-        lap, ahead, behind = kind[0] * turned[:, 0], kind[1] * turned[:, 1], kind[2] * turned[:, 2]
-        corners = np.stack([lap - ahead - behind, -0.5 * lap + behind, -0.5 * lap + ahead], axis=1)
-        corners *= scale[:, None, None]
-        self._group_base_x = np.ascontiguousarray(corners[..., 0])
-        self._group_base_y = np.ascontiguousarray(corners[..., 1])
+        self._group_total, self._group_base_x, self._group_base_y = _curve_group_factors(energy)
 
     @property
     def pattern(self):
