@@ -140,6 +140,40 @@ def _newton_step(objective, matrix, v, pose, gradient, area, forcing):
     return tangent(step, jacobian, direction), jacobian, direction
 
 
+def _descent_step(preconditioner, gradient, history, area, jacobian, direction):
+    """The quasi-Newton step from the history, or the preconditioner's own when that one does
+    not descend (the history is then dropped); tangent to the area constraint when there is one.
+
+    Returns
+    -------
+    step : (2 f,) ndarray
+    slope : float
+        The energy's derivative along ``step``.
+    """
+    search_gradient = gradient
+    if area is not None:
+        # Along the constraint the energy's curvature is the Lagrangian's.
+        search_gradient = gradient - multiplier(gradient, jacobian, direction) * jacobian
+
+    def along_constraint(step):
+        return step if area is None else tangent(step, jacobian, direction)
+
+    step = along_constraint(-_two_loop(preconditioner, search_gradient, history))
+    slope = 2.0 * float(gradient @ step)
+    if slope >= 0.0 and history:
+        history.clear()
+        step = along_constraint(-preconditioner.solve(search_gradient))
+        slope = 2.0 * float(gradient @ step)
+    return step, slope
+
+
+def _remember(history, s, y):
+    """Keep the pair (s, y) unless its curvature is not positive."""
+    sy = float(s @ y)
+    if sy > 1e-12 * np.sqrt(float(s @ s) * float(y @ y)):
+        history.append((s, y, 1.0 / sy))
+
+
 def minimise(objective, preconditioner, v, options, size, max_iterations, tolerance, area=None):
     """Minimise ``objective`` over the stacked free coordinates, starting from ``v``.
 
@@ -184,20 +218,7 @@ def minimise(objective, preconditioner, v, options, size, max_iterations, tolera
     result.refreshes = 1 if limit else 0
     history = deque(maxlen=options.history)
     for _ in range(max_iterations):
-        search_gradient = gradient
-        if area is not None:
-            # Along the constraint the energy's curvature is the Lagrangian's.
-            search_gradient = gradient - multiplier(gradient, jacobian, direction) * jacobian
-        step = -_two_loop(preconditioner, search_gradient, history)
-        if area is not None:
-            step = tangent(step, jacobian, direction)
-        slope = 2.0 * float(gradient @ step)
-        if slope >= 0.0 and history:
-            history.clear()
-            step = -preconditioner.solve(search_gradient)
-            if area is not None:
-                step = tangent(step, jacobian, direction)
-            slope = 2.0 * float(gradient @ step)
+        step, slope = _descent_step(preconditioner, gradient, history, area, jacobian, direction)
         # Converged when the proposed step moves no point more than the tolerance: the pose is
         # then that close to the minimum the model sees. (A step the line search shortened
         # would say nothing of the kind; checking before the search also saves an evaluation.)
@@ -228,9 +249,7 @@ def minimise(objective, preconditioner, v, options, size, max_iterations, tolera
             y = new_gradient - gradient
             if area is not None:
                 y -= multiplier(new_gradient, new_jacobian, new_direction) * (new_jacobian - jacobian)
-            sy = float(s @ y)
-            if sy > 1e-12 * np.sqrt(float(s @ s) * float(y @ y)):
-                history.append((s, y, 1.0 / sy))
+            _remember(history, s, y)
         v, energy, gradient = new_v, new_energy, new_gradient
         if area is not None:
             direction, jacobian = new_direction, new_jacobian
