@@ -109,7 +109,9 @@ def clear(obj):
         return 0
     owner.shapedeform.pop(BAKED, None)
     cage = owner.shapedeform.cage
-    return _remove_keys(cage) if cage is not None else 0
+    if cage is None or rig_format.own_mesh(cage) is None:
+        return 0
+    return _remove_keys(cage)
 
 
 # -- the bake ---------------------------------------------------------------------------------

@@ -330,6 +330,35 @@ def settle_duplicate(obj):
             release_follower(obj)
         elif not adopt_duplicated(obj):
             follow(obj)
+    elif obj.library is None and rig_format.is_owner(obj):
+        own_cage_mesh(obj)
+
+
+def own_cage_mesh(obj):
+    """Give an owner's cage a mesh of its own when another owner's cage has it; True when it did.
+
+    Appending a rigged character twice with Reuse Data (the Asset Browser's way for a user's
+    library) gives the two cage objects one mesh: each copy would show whichever rig posed
+    last, and a bake of one would play on both. The mesh names its cage
+    (``rig_format.CAGE_STAMP``), so this is found without looking through the file.
+    """
+    cage = obj.shapedeform.cage
+    mesh = cage.data
+    if cage.library is not None or mesh is None or mesh.library is not None:
+        return False
+    stamped = mesh.get(rig_format.CAGE_STAMP)
+    if stamped == cage:
+        return False
+    if (not isinstance(stamped, bpy.types.Object) or stamped.data != mesh or stamped.shapedeform.rig is None
+            or stamped.shapedeform.rig.shapedeform.cage != stamped):
+        mesh[rig_format.CAGE_STAMP] = cage  # not stamped yet (an older file), or a copy made for this cage
+        return False
+    followers = follower_cages(obj)
+    mesh = mesh.copy()
+    for own in [cage, *followers]:
+        own.data = mesh
+    mesh[rig_format.CAGE_STAMP] = cage
+    return True
 
 
 def release_follower(obj):

@@ -117,12 +117,17 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
         except RigError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
-        if active.mode == "OBJECT":  # as Blender adds objects: the new ones selected and active
+        view_layer = context.view_layer
+        shown = [empty for empty in added if view_layer.objects.get(empty.name) == empty]
+        if len(shown) < len(added):
+            notes.append("the rig's handle collection is not in this view layer (excluded, or not in the "
+                         "scene): the new handles work but are not shown")
+        if active.mode == "OBJECT" and shown:  # as Blender adds objects: the new ones selected and active
             for other in context.selected_objects:
                 other.select_set(False)
-            for empty in added:
+            for empty in shown:
                 empty.select_set(True)
-            context.view_layer.objects.active = added[-1]
+            view_layer.objects.active = shown[-1]
         if notes:
             self.report({"WARNING"}, "; ".join(notes))
         return {"FINISHED"}

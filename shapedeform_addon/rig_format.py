@@ -21,9 +21,11 @@ The cage, a mesh object parented to the owner (or copying its transform) and hid
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
     space when it was bound), its point attribute ``sd_rest`` the rest, ``shapedeform.rig``
     the owner. A bake is shape keys on its mesh, its Key marked ``shapedeform_bake``
-    (:mod:`.bake`). In a library override of a rigged character the cage's mesh is a local
-    copy of the library's, made the first time the rig poses and again when the library's rig
-    was bound anew (:func:`follow_library_cage`).
+    (:mod:`.bake`); the mesh's ``shapedeform_cage`` names the owner's cage object it belongs
+    to (:func:`.handles.own_cage_mesh`). In a library override of a rigged character the cage's mesh is a local
+    copy of the library's, made the first time the rig poses, bakes or clears a bake
+    (:func:`own_mesh`), and again when the library's rig was bound anew
+    (:func:`follow_library_cage`).
 Every object the rig deforms (the owner, and duplicates of it):
     a Geometry Nodes modifier with the group of :mod:`.nodes`, whose inputs name its cage,
     the rig's handle collection and the layer attribute.
@@ -53,6 +55,7 @@ CUTOUT_KEY = "cutout_points"  # on an image plane's settings: the cut-out's vert
 HANDLE_INDICES = "indices"  # on a handle's item: the graph points it owns
 HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when it was added
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
+CAGE_STAMP = "shapedeform_cage"  # on a cage's mesh: the owner's cage object it belongs to
 # Kept by older versions, which wrote poses into the object's own data: read only to give the
 # rest shape back (``restore_legacy`` of each source), dropped on unbind.
 LEGACY_GP_LAYERS, LEGACY_GP_FRAMES = "gp_layers", "gp_frames"
@@ -161,21 +164,31 @@ def make_cage(obj, plane, graph, collection):
     return cage
 
 
-def write_pose(cage, points):
-    """Write the pose (n, 3) float32 into the cage; False when a bake holds it (shape keys) or
-    the cage is library data."""
-    mesh = cage.data
+def own_mesh(cage):
+    """The cage's mesh, made the file's own first when it is a library's; None when the cage
+    itself is library data (nothing here can change it).
+
+    A library override of a rigged character has the library's cage mesh, which nothing here
+    can change (a pose or bake written there is lost on saving, and shows in every other
+    override of the character meanwhile). The cage takes a local copy, its own from now on, and
+    so do the cages of duplicates following the rig, which share its mesh.
+    """
     if cage.library is not None:
-        return False  # library data: nothing here can change it
+        return None
+    mesh = cage.data
     if mesh.library is not None:
-        # A library override of a rigged character: its cage's mesh is the library's, which
-        # nothing here can change. The cage takes a local copy, its own from now on, and so do
-        # the cages of duplicates following the rig, which share its mesh.
         shared, mesh = mesh, mesh.copy()
         for other in bpy.data.objects:
             if other.data == shared and other.shapedeform.rig == cage.shapedeform.rig and other.library is None:
                 other.data = mesh
-    if mesh.shape_keys is not None:
+    return mesh
+
+
+def write_pose(cage, points):
+    """Write the pose (n, 3) float32 into the cage (:func:`own_mesh`); False when a bake holds
+    it (shape keys) or the cage is library data."""
+    mesh = own_mesh(cage)
+    if mesh is None or mesh.shape_keys is not None:
         return False
     position = mesh.attributes["position"].data
     if len(points) == len(mesh.vertices) and np.array_equal(_points(mesh, position), points):

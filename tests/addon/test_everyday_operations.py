@@ -1098,6 +1098,102 @@ def test_clearing_a_library_bake_in_the_shot_lasts_after_reopening(addon, tmp_pa
     assert np.abs(evaluated(obj) - first).max() > 0.3
 
 
+def test_baking_an_override_of_a_baked_character_is_the_shots_own(addon, tmp_path, quiet):
+    """A character baked in its own file, overridden twice in a shot, one override keyed and
+    baked again there: the bake goes into the shot's copy of the cage mesh (it was written into
+    the library's mesh: lost on saving, the farm's bake included, and played meanwhile by the
+    other override), and Clear Bake on one override leaves the other's bake playing."""
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    library_pose = evaluated(obj).copy()
+
+    obj = override_in_a_new_shot(library)
+    scene = bpy.context.scene
+    with bpy.data.libraries.load(library, link=True) as (_, linked):
+        linked.collections = ["Character"]
+    linked.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)
+    other = next(o for o in scene.objects if o.shapedeform.is_bound and o != obj)
+    handle = obj.shapedeform.handles[1].object
+    handle.keyframe_insert("location", frame=1)
+    handle.location.y += 0.5
+    handle.keyframe_insert("location", frame=6)
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    assert obj.shapedeform.cage.data.library is None
+    scene.frame_set(6)
+    baked = evaluated(obj).copy()
+    assert np.abs(baked - library_pose).max() > 0.3
+    np.testing.assert_allclose(evaluated(other), library_pose, atol=1e-6)
+
+    obj.select_set(False)
+    other.select_set(True)
+    bpy.context.view_layer.objects.active = other
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+    assert addon.shapedeform_addon.rig_format.is_baked(obj)
+    scene.frame_set(1)
+    scene.frame_set(6)
+    np.testing.assert_allclose(evaluated(obj), baked, atol=1e-6)
+
+    shot = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    obj = next(o for o in bpy.context.scene.objects if o.name == "Grid")
+    bpy.context.scene.frame_set(6)
+    np.testing.assert_allclose(evaluated(obj), baked, atol=1e-6)
+
+
+def test_a_character_appended_twice_reusing_data_gets_two_rigs(addon, tmp_path, quiet):
+    """Append with Reuse Data (the Asset Browser's way for a user's own library) twice: the
+    two copies' cages shared one mesh, so each showed whichever rig posed last (a handle of the
+    second moved the first 0.34). Each copy gets its own, as with a plain append."""
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    for _ in range(2):
+        assert bpy.ops.wm.append(directory=library + "/Collection/", filename="Character",
+                                 do_reuse_local_id=True) == {"FINISHED"}
+    first, second = bpy.data.objects["Grid"], bpy.data.objects["Grid.001"]
+    bpy.context.scene.frame_set(1)
+    assert first.shapedeform.cage.data != second.shapedeform.cage.data
+    rest = evaluated(first).copy()
+    second.shapedeform.handles[1].object.location.y += 0.4
+    bpy.context.view_layer.update()
+    assert np.abs(evaluated(second) - rest).max() > 0.3
+    np.testing.assert_allclose(evaluated(first), rest, atol=1e-6)
+    bpy.context.view_layer.objects.active = second
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    first.shapedeform.handles[1].object.location.y -= 0.4
+    bpy.context.view_layer.update()
+    assert first.shapedeform.status == "" and np.abs(evaluated(first) - rest).max() > 0.3
+
+
+def test_add_handle_with_the_handle_collection_out_of_the_view_layer(addon, capfd):
+    """The rig's handle collection excluded from the view layer (the rig still plays, as the
+    README says): Add Handle adds the handle and says it is not shown (it raised, since an
+    object outside the view layer cannot be selected, after adding it)."""
+    obj = grid()
+    rig = Rigged(obj)
+    layer = bpy.context.view_layer.layer_collection.children[obj.shapedeform.handle_collection.name]
+    layer.exclude = True
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.0, 0.0, 0.0])) == {"FINISHED"}
+    assert len(obj.shapedeform.handles) == 3
+    out, err = capfd.readouterr()
+    assert "not in this view layer" in out and "Traceback" not in out + err
+    assert bpy.context.view_layer.objects.active == obj
+    rig.move(0.3, handle=obj.shapedeform.handles[2].object)
+    assert obj.shapedeform.status == ""
+
+
 # -- a rigged character instanced in another scene --------------------------------------------
 
 def instanced_points(obj):
