@@ -194,6 +194,7 @@ def sync_scene():
     """Bring an older version's node group up to date, repair duplicates and pose the current
     scene's rigs (a file opened, the extension enabled)."""
     nodes.upgrade()
+    rig_format.relink_overrides()
     for obj in bpy.data.objects:
         handles.settle_duplicate(obj)
     scene = bpy.context.scene

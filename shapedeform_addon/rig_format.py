@@ -413,3 +413,38 @@ def owners(scene):
 
 def _posable_owner(obj):
     return is_owner(obj) and obj.library is None
+
+
+def relink_overrides():
+    """Point the rig's references in library overrides back at the overrides.
+
+    Making a library override points everything in its hierarchy at the overridden copies, and
+    Blender saves that for the rig's properties only while the extension is enabled: a shot
+    saved without it (a lighter's machine) comes back with its overrides' cage, handles and
+    collections naming the library's objects, and the rig would follow those. Each reference
+    to a linked object or collection that has an override in the same hierarchy is moved to
+    that override.
+    """
+    overrides = {}
+    for block in (*bpy.data.objects, *bpy.data.collections):
+        override = block.override_library
+        if block.library is None and override is not None and override.reference is not None:
+            overrides[(override.reference, override.hierarchy_root)] = block
+    if not overrides:
+        return
+    for obj in bpy.data.objects:
+        if obj.library is None and obj.override_library is not None:
+            _relink(obj.shapedeform, obj.override_library.hierarchy_root, overrides)
+
+
+def _relink(group, root, overrides):
+    for prop in group.bl_rna.properties:
+        if prop.type == "COLLECTION" and prop.identifier != "rna_type":
+            for item in getattr(group, prop.identifier):
+                _relink(item, root, overrides)
+        elif prop.type == "POINTER" and prop.identifier != "rna_type":
+            value = getattr(group, prop.identifier)
+            if isinstance(value, bpy.types.ID) and value.library is not None:
+                replacement = overrides.get((value, root))
+                if replacement is not None:
+                    setattr(group, prop.identifier, replacement)

@@ -1149,6 +1149,54 @@ def test_baking_an_override_of_a_baked_character_is_the_shots_own(addon, tmp_pat
     np.testing.assert_allclose(evaluated(obj), baked, atol=1e-6)
 
 
+def test_an_override_saved_without_the_extension_keeps_its_rig(addon, tmp_path, quiet):
+    """A shot whose override was baked, opened and saved by someone without the extension:
+    Blender saves the override's rig references only while the extension is enabled, so they
+    came back naming the library's cage and handles, and the rig was taken for a duplicate
+    following the library's (a new cage, the bake lost: 0.9 off, no message). The references
+    are moved back to the overrides; the bake plays, and so do the keys after Clear Bake."""
+    import addon_utils
+    from extension_under_test import ADDON_MODULE
+
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    obj = override_in_a_new_shot(library)
+    handle = obj.shapedeform.handles[1].object
+    handle.keyframe_insert("location", frame=1)
+    handle.location.y += 0.5
+    handle.keyframe_insert("location", frame=6)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    scene = bpy.context.scene
+    scene.frame_set(6)
+    baked = evaluated(obj).copy()
+    shot = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    addon_utils.disable(ADDON_MODULE, default_set=True)
+    try:
+        bpy.ops.wm.open_mainfile(filepath=shot)
+        bpy.ops.wm.save_mainfile()
+    finally:
+        addon_utils.enable(ADDON_MODULE, default_set=True)
+
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    obj = next(o for o in bpy.context.scene.objects if o.name == "Grid")
+    settings = obj.shapedeform
+    assert settings.cage.library is None and settings.cage.override_library is not None
+    assert all(item.object.library is None for item in settings.handles)
+    assert settings.cage.shapedeform.rig == obj
+    bpy.context.scene.frame_set(6)
+    np.testing.assert_allclose(evaluated(obj), baked, atol=1e-6)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+    bpy.context.scene.frame_set(1)
+    bpy.context.scene.frame_set(6)
+    assert obj.shapedeform.status == ""
+    np.testing.assert_allclose(evaluated(obj), baked, atol=1e-4)
+
+
 def test_a_character_appended_twice_reusing_data_gets_two_rigs(addon, tmp_path, quiet):
     """Append with Reuse Data (the Asset Browser's way for a user's own library) twice: the
     two copies' cages shared one mesh, so each showed whichever rig posed last (a handle of the
