@@ -115,10 +115,12 @@ def _bake(args):
             raise _UsageError(f"--output: the folder {folder} does not exist")
         if os.path.isdir(output):
             raise _UsageError(f"--output {output} is a folder: name a .blend file in it")
+    with bpy.context.temp_override(**context):
+        depsgraph = bpy.context.evaluated_depsgraph_get()  # the view layer's that will bake
     if args.objects:
         # The scene's objects and the rigs it shows through collection instances; a handle or
         # cage stands for its rig, as in the Bake operator (an instanced rig's too).
-        owners = rig_format.owners(scene)
+        owners = rig_format.owners(scene, depsgraph)
         parts = [h.object for o in owners for h in o.shapedeform.handles if rig_format.present(h.object)]
         parts += [o.shapedeform.cage for o in owners if o.shapedeform.cage is not None]
         shown = {o.name: o for o in parts + owners + list(scene.objects)}
@@ -133,7 +135,7 @@ def _bake(args):
         # Bound objects whose rig broke (a cage deleted by hand) too: the bake then says why.
         broken = [o for o in scene.objects if o.shapedeform.is_bound and o.shapedeform.cage is None
                   and o.library is None]
-        objects = [o for o in rig_format.owners(scene) + broken
+        objects = [o for o in rig_format.owners(scene, depsgraph) + broken
                    if any(rig_format.present(h.object) for h in o.shapedeform.handles)]
         if not objects:
             raise _UsageError(f"scene '{scene.name}' has no rigs with handles to bake")

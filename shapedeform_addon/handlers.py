@@ -143,7 +143,7 @@ def on_frame_change(scene, depsgraph):
     # showing the Viewport budget's pose and, a moment later, the refined one (a visible jump
     # on every step where a solve stops short). Playback and scrubbing keep the Viewport budget,
     # and leave the rigs the viewport does not show to be posed when they stop.
-    owners = [o for o in rig_format.owners(scene) if o.shapedeform.handles]
+    owners = [o for o in rig_format.owners(scene, depsgraph) if o.shapedeform.handles]
     interactive = _interactive()
     if interactive:
         view_layer, seen = bpy.context.view_layer, []
@@ -199,7 +199,8 @@ def sync_scene():
         handles.settle_duplicate(obj)
     scene = bpy.context.scene
     if scene is not None:
-        _pose([o for o in rig_format.owners(scene) if o.shapedeform.handles], bpy.context.evaluated_depsgraph_get())
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        _pose([o for o in rig_format.owners(scene, depsgraph) if o.shapedeform.handles], depsgraph)
 
 
 _HANDLERS = (

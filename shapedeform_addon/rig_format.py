@@ -383,14 +383,19 @@ def is_baked(obj):
     return bool(keys.get(BAKE_MARK)) or (BAKED in obj.shapedeform and len(keys.key_blocks) > 1)
 
 
-def owners(scene):
+def owners(scene, depsgraph=None):
     """Rig owners that ``scene`` shows: its objects, and those of the collections its objects
     instance, at any depth (a character shown in a shot by a Collection Instance, or in a set
     that is itself instanced), and the owners of the duplicates following a rig it shows (a
     copy moved to another scene poses there with its rig's handles, which its modifier has
     Blender evaluate wherever it is). Linked rigs (library data without an override) are left
     out: nothing here can pose them (a bake in their own file can). The scenes ``scene`` shows
-    as its Background Set, and theirs, are shown too."""
+    as its Background Set, and theirs, are shown too.
+
+    Rigs the scene shows by other ways (a Geometry Nodes *Collection Info* node, particles
+    rendering a collection) are found in ``depsgraph`` (by default the context view layer's,
+    when it is ``scene``'s): those it evaluates are shown.
+    """
     found, seen = [], set()
     objects, shown = list(scene.objects), {scene.session_uid}
     backdrop = scene.background_set
@@ -408,7 +413,24 @@ def owners(scene):
         owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
         if _posable_owner(owner):
             found.append(owner)
+    if len(bpy.data.objects) != len(objects):  # objects outside what was walked: maybe shown otherwise
+        found += _evaluated_owners(scene, depsgraph, set(found))
     return list(dict.fromkeys(found))  # shown twice, posed once
+
+
+def _evaluated_owners(scene, depsgraph, known):
+    if depsgraph is None:
+        view_layer = getattr(bpy.context, "view_layer", None)
+        if view_layer is None or scene.view_layers.get(view_layer.name) != view_layer:
+            return []
+        depsgraph = view_layer.depsgraph
+    found = []
+    for obj in bpy.data.objects:
+        if obj.shapedeform.is_bound and obj not in known and obj.evaluated_get(depsgraph).is_evaluated:
+            owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
+            if owner not in known and _posable_owner(owner):
+                found.append(owner)
+    return found
 
 
 def _posable_owner(obj):

@@ -1291,6 +1291,52 @@ def test_a_collection_instanced_in_another_scene_follows_its_handles(addon, only
     np.testing.assert_allclose(instanced_points(obj), posed, atol=1e-5)
 
 
+def collection_info_host(collection):
+    """A mesh object whose Geometry Nodes modifier shows ``collection`` (a Collection Info node,
+    as crowds and layouts are built)."""
+    host = bpy.data.objects.new("Crowd", bpy.data.meshes.new("Crowd"))
+    group = bpy.data.node_groups.new("Show Character", "GeometryNodeTree")
+    group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    info = group.nodes.new("GeometryNodeCollectionInfo")
+    info.inputs["Collection"].default_value = collection
+    info.transform_space = "RELATIVE"
+    group.links.new(info.outputs[0], group.nodes.new("NodeGroupOutput").inputs[0])
+    host.modifiers.new("Crowd", "NODES").node_group = group
+    return host
+
+
+@pytest.mark.parametrize("in_a_scene", [True, False], ids=["in its own scene", "in no scene"])
+def test_a_collection_shown_by_geometry_nodes_in_another_scene_follows_its_handles(addon, in_a_scene, tmp_path,
+                                                                                    quiet):
+    """A shot showing a rigged character's collection through a Geometry Nodes Collection Info
+    node poses it on every frame, and the command line bakes it (only rigs reached through the
+    scene's objects and collection instances were posed: it showed frame 1's pose)."""
+    character, obj = character_collection(tmp_path)
+    rig = Rigged(obj)
+    scene = bpy.context.scene
+    rig.second.keyframe_insert("location", frame=1)
+    rig.second.location.y += 0.8
+    rig.second.keyframe_insert("location", frame=10)
+    scene.frame_set(10)
+    posed = evaluated(obj).copy()
+    scene.frame_set(1)
+    rest = evaluated(obj).copy()
+    if not in_a_scene:
+        scene.collection.children.unlink(character)
+    shot = bpy.data.scenes.new("Shot")
+    shot.collection.objects.link(collection_info_host(character))
+    bpy.context.window.scene = shot
+    for frame, expected in ((10, posed), (1, rest), (10, posed)):
+        shot.frame_set(frame)
+        np.testing.assert_allclose(instanced_points(obj), expected, atol=1e-5, err_msg=f"frame {frame}")
+    path = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    name = obj.name
+    assert addon.shapedeform_addon.cli.main(["bake", "--frames", "1-10"]) == 0
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert addon.shapedeform_addon.rig_format.is_baked(bpy.data.objects[name])
+
+
 def test_the_command_line_bakes_an_instanced_rig_named_by_its_handle(addon, tmp_path, capsys):
     """A shot shows the character only through a Collection Instance: ``--objects`` takes its
     handle's name for its rig, as it takes a handle of the scene's own."""
