@@ -112,6 +112,10 @@ def on_depsgraph_update(scene, depsgraph):
     if _busy:
         return
     moved = {}
+    if any(isinstance(update.id, bpy.types.Collection) for update in depsgraph.updates):
+        for obj in bpy.data.objects:  # an object moved between collections, perhaps a handle
+            if rig_format.is_owner(obj):
+                handles.keep_in_collection(obj)
     for update in depsgraph.updates:
         if not isinstance(update.id, bpy.types.Object):
             continue
@@ -197,6 +201,8 @@ def sync_scene():
     rig_format.relink_overrides()
     for obj in bpy.data.objects:
         handles.settle_duplicate(obj)
+        if rig_format.is_owner(obj):
+            handles.keep_in_collection(obj)
     scene = bpy.context.scene
     if scene is not None:
         depsgraph = bpy.context.evaluated_depsgraph_get()

@@ -361,6 +361,26 @@ def own_cage_mesh(obj):
     return True
 
 
+def keep_in_collection(obj):
+    """Link back into ``obj``'s handle collection the handles and pins moved out of it (M, Move
+    to Collection); True when any was.
+
+    The modifier reads the handles through that collection, which is what has Blender evaluate
+    them wherever the object is: a handle only in a collection excluded or disabled in renders
+    would be left unevaluated (the viewport froze it; Render Animation posed every frame with
+    the frame the render started at). A handle in no collection was deleted, and stays so.
+    """
+    settings = obj.shapedeform
+    home = settings.handle_collection
+    if obj.library is not None or home is None or home.library is not None or home.override_library is not None:
+        return False
+    strays = [item.object for item in settings.handles
+              if rig_format.present(item.object) and home not in item.object.users_collection]
+    for empty in strays:
+        home.objects.link(empty)
+    return bool(strays)
+
+
 def release_follower(obj):
     """Make a follower a plain object: its own cage and its copy of the rig's settings go; its
     data, modifiers aside, is as it is (the quad of an image plane is the owner's to give back)."""

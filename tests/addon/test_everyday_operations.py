@@ -839,12 +839,15 @@ def test_one_update_shows_the_pose_whatever_else_changed(addon, edit, quiet):
 
 # -- the handles' collection hidden -------------------------------------------------------------
 
+@pytest.mark.parametrize("moved", [False, True], ids=["rig's collection", "moved to the animator's"])
 @pytest.mark.parametrize("hide", ["hide_viewport", "exclude", "hide_render"])
-def test_handles_drive_the_shape_wherever_their_collection_is_hidden(addon, hide, tmp_path, quiet):
+def test_handles_drive_the_shape_wherever_their_collection_is_hidden(addon, hide, moved, tmp_path, quiet):
     """Hiding the rig's "<name> Handles" collection (disabled in viewports, excluded from the
     view layer, or disabled in renders) leaves the deformation as it was: the handles' keyed
     motion is evaluated, shown, baked and rendered (it froze at the last pose, or rendered the
-    rest, when the handles left the depsgraph)."""
+    rest, when the handles left the depsgraph). So does hiding a collection of the animator's
+    a handle was moved to (M): the handle stays in the rig's collection too (it froze in the
+    viewport, 0.6 off, and Render Animation posed every frame as the first)."""
     obj = make_mesh(tmp_path)
     rig = Rigged(obj)
     scene = bpy.context.scene
@@ -857,6 +860,14 @@ def test_handles_drive_the_shape_wherever_their_collection_is_hidden(addon, hide
         expected[frame] = evaluated(obj).copy()
     assert np.abs(expected[6] - expected[1]).max() > 0.3
     collection = obj.shapedeform.handle_collection
+    if moved:  # as Move to Collection does
+        collection = bpy.data.collections.new("Controls")
+        scene.collection.children.link(collection)
+        for other in list(rig.second.users_collection):
+            other.objects.unlink(rig.second)
+        collection.objects.link(rig.second)
+        bpy.context.view_layer.update()
+        assert set(rig.second.users_collection) == {collection, obj.shapedeform.handle_collection}
     if hide == "hide_render":
         renders.camera_over((0.0, 0.0), 3.0)
         seen = renders.animation_frame(6, tmp_path, "shown")
