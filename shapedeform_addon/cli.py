@@ -84,14 +84,24 @@ def _negative_ranges_joined(argv):
 
 
 def _output_path(output):
-    """The absolute path ``--output`` names (``//`` relative to the opened file); None without."""
+    """The absolute path ``--output`` names (``//`` relative to the opened file); None without,
+    when the opened file is saved over."""
     if output is None:
+        if not bpy.data.filepath:
+            raise _UsageError("no .blend file is open: give it before -c (blender -b shot.blend -c ...) "
+                              "or pass --output")
         return None
     if not output.strip():
         raise _UsageError("--output is empty: name a .blend file, or leave --output out to save over the opened one")
     if output.startswith("//") and not bpy.data.filepath:
         raise _UsageError(f"--output {output}: '//' is the opened file's folder, and no file is open")
-    return os.path.abspath(bpy.path.abspath(output))
+    path = os.path.abspath(bpy.path.abspath(output))
+    folder = os.path.dirname(path)
+    if not os.path.isdir(folder):
+        raise _UsageError(f"--output: the folder {folder} does not exist")
+    if os.path.isdir(path):
+        raise _UsageError(f"--output {path} is a folder: name a .blend file in it")
+    return path
 
 
 def _bake(args):
@@ -106,39 +116,9 @@ def _bake(args):
         if context["view_layer"] is None:
             raise _UsageError(f"no view layer named '{args.view_layer}' in scene '{scene.name}'")
     output = _output_path(args.output)
-    if output is None and not bpy.data.filepath:
-        raise _UsageError("no .blend file is open: give it before -c (blender -b shot.blend -c ...) "
-                          "or pass --output")
-    if output is not None:
-        folder = os.path.dirname(output)
-        if not os.path.isdir(folder):
-            raise _UsageError(f"--output: the folder {folder} does not exist")
-        if os.path.isdir(output):
-            raise _UsageError(f"--output {output} is a folder: name a .blend file in it")
     with bpy.context.temp_override(**context):
         depsgraph = bpy.context.evaluated_depsgraph_get()  # the view layer's that will bake
-    if args.objects:
-        # The scene's objects and the rigs it shows through collection instances; a handle or
-        # cage stands for its rig, as in the Bake operator (an instanced rig's too).
-        owners = rig_format.owners(scene, depsgraph)
-        parts = [h.object for o in owners for h in o.shapedeform.handles if rig_format.present(h.object)]
-        parts += [o.shapedeform.cage for o in owners if o.shapedeform.cage is not None]
-        shown = {o.name: o for o in parts + owners + list(scene.objects)}
-        missing = [name for name in args.objects if name not in shown]
-        if missing:
-            raise _UsageError(f"no object named {', '.join(map(repr, missing))} in scene '{scene.name}'")
-        objects = list(dict.fromkeys(rig_format.owner_of(shown[name]) or shown[name] for name in args.objects))
-        unbound = [o.name for o in objects if not o.shapedeform.is_bound]
-        if unbound:
-            raise _UsageError(f"not rigged with Shape Deform: {', '.join(map(repr, unbound))}")
-    else:
-        # Bound objects whose rig broke (a cage deleted by hand) too: the bake then says why.
-        broken = [o for o in scene.objects if o.shapedeform.is_bound and o.shapedeform.cage is None
-                  and o.library is None]
-        objects = [o for o in rig_format.owners(scene, depsgraph) + broken
-                   if any(rig_format.present(h.object) for h in o.shapedeform.handles)]
-        if not objects:
-            raise _UsageError(f"scene '{scene.name}' has no rigs with handles to bake")
+    objects = _rigs_to_bake(args.objects, scene, depsgraph)
     start, end = args.frames or (scene.frame_start, scene.frame_end)
     names = ", ".join(o.name for o in objects)
     print(f"{COMMAND}: baking frames {start}-{end} (step {args.step}) of {names}", flush=True)
@@ -151,6 +131,34 @@ def _bake(args):
     target = output or bpy.data.filepath
     bpy.ops.wm.save_as_mainfile(filepath=target, copy=output is not None)
     print(f"{COMMAND}: saved {target}", flush=True)
+
+
+def _rigs_to_bake(names, scene, depsgraph):
+    """The rig owners to bake: those ``names`` (objects, or their handles or cages) name, or
+    every rig of ``scene`` with handles when ``names`` is empty."""
+    if names:
+        # The scene's objects and the rigs it shows through collection instances; a handle or
+        # cage stands for its rig, as in the Bake operator (an instanced rig's too).
+        owners = rig_format.owners(scene, depsgraph)
+        parts = [h.object for o in owners for h in o.shapedeform.handles if rig_format.present(h.object)]
+        parts += [o.shapedeform.cage for o in owners if o.shapedeform.cage is not None]
+        shown = {o.name: o for o in parts + owners + list(scene.objects)}
+        missing = [name for name in names if name not in shown]
+        if missing:
+            raise _UsageError(f"no object named {', '.join(map(repr, missing))} in scene '{scene.name}'")
+        objects = list(dict.fromkeys(rig_format.owner_of(shown[name]) or shown[name] for name in names))
+        unbound = [o.name for o in objects if not o.shapedeform.is_bound]
+        if unbound:
+            raise _UsageError(f"not rigged with Shape Deform: {', '.join(map(repr, unbound))}")
+    else:
+        # Bound objects whose rig broke (a cage deleted by hand) too: the bake then says why.
+        broken = [o for o in scene.objects if o.shapedeform.is_bound and o.shapedeform.cage is None
+                  and o.library is None]
+        objects = [o for o in rig_format.owners(scene, depsgraph) + broken
+                   if any(rig_format.present(h.object) for h in o.shapedeform.handles)]
+        if not objects:
+            raise _UsageError(f"scene '{scene.name}' has no rigs with handles to bake")
+    return objects
 
 
 def main(argv):
