@@ -49,7 +49,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 11
+VERSION = 12
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -237,9 +237,9 @@ class _Cage:
 
     Attributes (node sockets): ``geometry`` the cage as its object gives it; ``rest`` the cage
     at rest, its posed points kept in the ``POSED`` attribute; ``position`` and ``posed`` the
-    position and posed-position fields; ``face_map`` each triangle's affine map, rest corners to
-    posed corners with the rest normal kept (so heights above the plane are kept); ``normal``
-    the rest plane's normal; ``span`` the rest cage's extent in its plane, and ``corner`` its
+    position and posed-position fields; ``face_map`` each triangle's linear map, rest edges to
+    posed edges with the rest normal kept (so heights above the plane are kept), applied about
+    ``face_rest_corner`` (taken to ``face_posed_corner``); ``normal`` the rest plane's normal; ``span`` the rest cage's extent in its plane, and ``corner`` its
     lowest corner there (the UV square's origin).
     """
 
@@ -260,10 +260,14 @@ class _Cage:
                         data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
         self.rest = b.node("GeometryNodeSetPosition", {"Geometry": stored, "Position": rest_here}).outputs[0]
         self.posed = b.node("GeometryNodeInputNamedAttribute", {"Name": POSED}, data_type="FLOAT_VECTOR").outputs[0]
-        self.face_map = self._face_maps()
+        self._face_maps()
         self._plane()
 
     def _face_maps(self):
+        """Each triangle's linear map (rest edges to posed edges, the rest normal kept), with
+        its first corner at rest and posed: :meth:`mapped` applies it about that corner, so its
+        rounding scales with a point's distance from the triangle, not from the object's origin
+        (a drawing 1e6 from its origin, applied as one affine map in float32, was thrown 6e4)."""
         b, position, posed = self.b, self.position, self.posed
         rest_corners, posed_corners = [], []
         for k in range(3):
@@ -275,10 +279,16 @@ class _Cage:
         e1, e2 = (b.math("SUBTRACT", r, rest_corners[0]) for r in rest_corners[1:])
         f1, f2 = (b.math("SUBTRACT", p, posed_corners[0]) for p in posed_corners[1:])
         normal = b.math("NORMALIZE", b.math("CROSS_PRODUCT", e1, e2))
-        rest_frame = b.columns_matrix(e1, e2, normal, rest_corners[0])
-        posed_frame = b.columns_matrix(f1, f2, normal, posed_corners[0])
-        inverse_rest = b.node("FunctionNodeInvertMatrix", [rest_frame]).outputs[0]
-        return b.node("FunctionNodeMatrixMultiply", [posed_frame, inverse_rest]).outputs[0]
+        origin = (0.0, 0.0, 0.0)
+        inverse_rest = b.node("FunctionNodeInvertMatrix", [b.columns_matrix(e1, e2, normal, origin)])
+        linear = b.node("FunctionNodeMatrixMultiply", [b.columns_matrix(f1, f2, normal, origin),
+                                                        inverse_rest.outputs["Matrix"]]).outputs[0]
+        # A triangle flat to rounding has no map of its own: its corner's shift alone.
+        identity = b.node("FunctionNodeCombineMatrix").outputs[0]
+        self.face_map = b.node("GeometryNodeSwitch", {"Switch": inverse_rest.outputs["Invertible"],
+                                                      "False": identity, "True": linear},
+                               input_type="MATRIX").outputs[0]
+        self.face_rest_corner, self.face_posed_corner = rest_corners[0], posed_corners[0]
 
     def _plane(self):
         # The rig's plane, turned onto XY, gives the UVs; the rest cage's first face has its
@@ -310,9 +320,14 @@ class _Cage:
         b = self.b
         face = b.node("GeometryNodeSampleNearest", {"Geometry": self.rest, "Sample Position": point if about is None else about},
                       domain="FACE").outputs[0]
-        matrix = b.node("GeometryNodeSampleIndex", {"Geometry": self.rest, "Value": self.face_map, "Index": face},
-                        data_type="FLOAT4X4", domain="FACE").outputs[0]
-        return b.node("FunctionNodeTransformPoint", [point, matrix]).outputs[0]
+
+        def at_face(field, data_type):
+            return b.node("GeometryNodeSampleIndex", {"Geometry": self.rest, "Value": field, "Index": face},
+                          data_type=data_type, domain="FACE").outputs[0]
+
+        from_corner = b.math("SUBTRACT", point, at_face(self.face_rest_corner, "FLOAT_VECTOR"))
+        turned = b.node("FunctionNodeTransformPoint", [from_corner, at_face(self.face_map, "FLOAT4X4")]).outputs[0]
+        return b.math("ADD", at_face(self.face_posed_corner, "FLOAT_VECTOR"), turned)
 
 
 def _rigged_selection(b, rigged_name):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
-from scipy.spatial import Delaunay, cKDTree
+from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from .shapes import box_centre
 
@@ -77,11 +77,20 @@ def filtered_delaunay(points, geometry, min_area=0.0):
     -------
     (t, 3) int64 ndarray
         Counter-clockwise triangles.
+
+    Raises
+    ------
+    ValueError
+        The points are too nearly on one line for Qhull.
     """
     # Qhull works in absolute coordinates: a shape far from the origin (a millionth of its
     # offset in size) loses the digits it needs and leaves boundary segments out, which the
     # conforming loop then splits round after round. Centred, it keeps them.
-    simplices = Delaunay(points - box_centre(points)).simplices
+    try:
+        simplices = Delaunay(points - box_centre(points)).simplices
+    except QhullError:  # its points all but on one line, to the precision Qhull works at
+        raise ValueError("the shape is too thin to triangulate: its points are on one line to "
+                         "the precision Delaunay triangulation works at") from None
     centroid = points[simplices].mean(axis=1)
     cross = triangle_cross(points, simplices)
     inside = shapely.contains_xy(geometry, centroid[:, 0], centroid[:, 1])

@@ -16,7 +16,7 @@ while it wrote poses into the curve; :func:`restore_legacy` gives them back.
 import numpy as np
 
 from ...solver.outline import outline_graph
-from ...solver.rigging.outline import sample_bezier
+from ...solver.rigging.outline import sample_bezier, with_area
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from ..errors import RigError
@@ -77,6 +77,8 @@ def prepare(obj, settings):
         plane = fit_plane(rest, line_normal=(0.0, 0.0, 1.0))
         flat = plane.to_2d(rest)
         rings, strokes = _rings_and_strokes(curve, flat)
+        # A closed spline round no area (its points on one line) is left out, unless all are.
+        rings = with_area(rings) or rings
         if not rings:
             size = float(np.linalg.norm(np.ptp(flat, axis=0)))
             radius = max(curve.bevel_depth, SWEEP_FRACTION * size)

@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 from ... import solver
 from ...solver.outline import outline_graph
 from ...solver.shapes import geometry_rings
-from ...solver.rigging.outline import boundary_loops, smallest_angles
+from ...solver.rigging.outline import boundary_loops, smallest_angles, with_area
 from ...solver.rigging.plane import fit_plane
 from ..errors import RigError
 from .prepared import Prepared
@@ -27,6 +27,10 @@ OWN_GRAPH_LIMIT = 2000
 # ... and only when its triangles are not slivers (text and n-gon fills are): the paper's energy
 # on slivers lets them flip, while a built graph has well-shaped triangles.
 OWN_GRAPH_MIN_ANGLE = np.radians(5.0)
+# ... and only when most of its points are inside: a mesh that is little but its outline
+# (Blender's Plane: four corners, no inside) gives the energy's interior terms nothing to hold,
+# and a handle's region of a few points spans most of it (a corner's handle took three corners).
+# Unless its faces overlap (a cut-out puppet's pieces): only the mesh itself keeps them apart.
 
 
 def read_vectors(attribute, count):
@@ -58,13 +62,17 @@ def edges(mesh):
 
 def _welded(rest, flat, tris, mesh_edges):
     """The mesh with its faces joined where their edges lie on one another (within 1e-6 of its
-    size): a mesh whose faces share no vertices (an OBJ import, Edge Split) is one piece, not an
+    size, or a quarter of its shortest edge if less): a mesh whose faces share no vertices (an OBJ import, Edge Split) is one piece, not an
     island per face. Islands that only overlap (a puppet's arm over its body) stay apart, even
     where a vertex of one lies on a vertex of the other. (Where joined faces meet at a corner
     only, :func:`prepare` rigs the outline.) Returns (flat points (p, 2), triangles, edges):
     the mesh as it is when nothing joins."""
     size = float(np.linalg.norm(np.ptp(rest, axis=0)))
-    pairs = cKDTree(rest).query_pairs(1e-6 * size, output_type="ndarray")
+    # Never as far as a quarter of a face's shortest edge, so no face is joined to itself (a
+    # strip a million times longer than wide lost every face).
+    sides = np.linalg.norm(rest[tris] - rest[np.roll(tris, 1, axis=1)], axis=2)
+    shortest = float(sides[sides > 0].min()) if (sides > 0).any() else size
+    pairs = cKDTree(rest).query_pairs(min(1e-6 * size, 0.25 * shortest), output_type="ndarray")
     if len(pairs) == 0:
         return flat, tris, mesh_edges
     n = len(rest)
@@ -111,8 +119,10 @@ def prepare(obj, settings):
     mode = settings.graph_mode
     well_shaped = smallest_angles(flat, tris).min() >= OWN_GRAPH_MIN_ANGLE
     if mode == "AUTO":
-        mode = "OWN" if (len(flat) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped
-                         and pinched is None) else "OUTLINE"
+        own = len(flat) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped and pinched is None
+        if own and 2 * sum(len(loop) for loop in loops) >= len(flat):  # mostly outline
+            own = _faces_overlap(flat, tris)
+        mode = "OWN" if own else "OUTLINE"
     try:
         if mode == "OWN":
             if pinched is not None:
@@ -122,7 +132,7 @@ def prepare(obj, settings):
             graph = solver.Graph(flat, mesh_edges, loops, tris)
         else:
             if pinched is None:
-                rings = [flat[loop] for loop in loops]
+                rings = with_area([flat[loop] for loop in loops]) or [flat[loop] for loop in loops]
             else:
                 faces = shapely.union_all(shapely.polygons(flat[tris]))
                 rings = [ring for island in geometry_rings(faces) for ring in island]
@@ -134,6 +144,14 @@ def prepare(obj, settings):
         advice = ("its long thin faces can fold where it bends hard: raise Refine on its Shape Deform "
                   "modifier to subdivide them")
     return Prepared(plane, graph, advice=advice)
+
+
+def _faces_overlap(flat, tris):
+    """Whether some of the triangles (t, 3) over points (n, 2) lie on one another."""
+    corners = flat[tris]
+    area = 0.5 * np.abs(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])).sum()
+    covered = shapely.union_all(shapely.polygons(corners)).area
+    return covered < area * (1.0 - 1e-6)
 
 
 def unbind(obj):

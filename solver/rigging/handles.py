@@ -20,6 +20,9 @@ __all__ = ["frame_2d", "handle_matrix", "apply_affine", "invert_affine", "select
            "region_offsets", "region_targets", "rest_position", "place", "distance_off"]
 # Fewest graph points in a region: three points fix a patch's rotation as well as its place.
 MIN_REGION_POINTS = 3
+# Relative difference of distances that counts as a tie: above float32's rounding (1.2e-7),
+# which a mesh's vertices carry.
+TIE = 1e-5
 
 
 def frame_2d(plane, matrix):
@@ -107,7 +110,7 @@ def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS)
     centre : (2,) array_like
     radius : float
         Points closer than this belong to the region; if fewer than ``minimum`` are, the
-        ``minimum`` nearest free points do.
+        ``minimum`` nearest free points do, with any others as near as the last of them.
     taken : (n,) bool array_like, optional
         Points already owned by other handles: never selected (the deformer takes each point as
         a handle once).
@@ -133,6 +136,12 @@ def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS)
         raise ValueError("every point of the shape already belongs to a handle")
     inside = int((distance < radius).sum())
     count = min(max(inside, minimum), free)
+    if count > inside:
+        # Points as near as the last one taken come too: on a regular grid a vertex's
+        # neighbours tie, and rounding (float32 data) would pick some of them by the shape's
+        # size or place, and the pose with them.
+        last = distance[order[count - 1]]
+        count = int((distance <= last * (1.0 + TIE)).sum())
     return order[:count]
 
 

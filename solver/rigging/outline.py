@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["boundary_loops", "sample_bezier", "smallest_angles"]
+from ..shapes import clean_ring
+
+__all__ = ["boundary_loops", "sample_bezier", "smallest_angles", "with_area"]
 
 
 def boundary_loops(triangles):
@@ -117,3 +119,26 @@ def smallest_angles(points, triangles):
     angles = np.arccos(np.clip(cosine, -1.0, 1.0))
     angles[(lengths == 0).any(axis=1)] = 0.0
     return angles.min(axis=1)
+
+
+def with_area(rings):
+    """The rings that bound some area, in order: a closed spline or a face's loop whose points
+    all lie on one line (or at fewer than three places) draws nothing filled, and is left out
+    rather than refusing the whole shape.
+
+    Parameters
+    ----------
+    rings : list of (k, 2) array_like
+
+    Returns
+    -------
+    list of (k, 2) array_like
+    """
+    kept = []
+    for ring in rings:
+        try:
+            clean_ring(ring)
+        except ValueError:
+            continue
+        kept.append(ring)
+    return kept

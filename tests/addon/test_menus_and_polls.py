@@ -228,12 +228,14 @@ def test_a_handle_added_off_the_shape_says_it_holds_the_nearest_part_at_a_distan
     assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.0, 0.0, 0.0])) == {"FINISHED"}
     assert "off it" not in capsys.readouterr().out
 
-    # On a face far from every vertex (Blender's Plane, its own graph of four points) is on it.
+    # On a face far from every vertex (Blender's Plane, its own graph of four points) is on it
+    # (off its centre, where all four corners are equally near and the region would take them).
     bpy.ops.mesh.primitive_plane_add(size=2.0, location=(5.0, 0.0, 0.0))
     plane = bpy.context.active_object
+    plane.shapedeform.graph_mode = "OWN"
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert len(addon.shapedeform_addon.rig.get(plane).graph.points) == 4
-    for place in ([5.0, 0.0, 0.0], [5.9, 0.9, 0.0]):
+    for place in ([5.2, 0.1, 0.0], [4.1, -0.9, 0.0]):
         bpy.context.view_layer.objects.active = plane
         assert bpy.ops.shapedeform.add_handle(location=place) == {"FINISHED"}
         assert "off it" not in capsys.readouterr().out

@@ -117,6 +117,24 @@ def test_curve_with_no_area_is_refused(addon):
     assert checks.snapshot() == before and "sd_rest" not in curve
 
 
+def test_a_closed_spline_round_no_area_beside_the_shape_is_left_out(addon):
+    """A square and a closed spline whose points are on one line: Bind refused the whole curve
+    ("ring 1 has zero area"); the flat spline is left out of the outline (a curve of such
+    splines alone is still refused, above)."""
+    curve = bpy.data.curves.new("Curve", "CURVE")
+    curve.dimensions = "2D"
+    for ring in ([(0, 0), (2, 0), (2, 1), (0, 1)], [(3, 0), (4, 0), (5, 0)]):
+        spline = curve.splines.new("POLY")
+        spline.points.add(len(ring) - 1)
+        for point, (x, y) in zip(spline.points, ring):
+            point.co = (x, y, 0.0, 1.0)
+        spline.use_cyclic_u = True
+    obj = bpy.data.objects.new("Curve", curve)
+    bpy.context.scene.collection.objects.link(obj)
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+
+
 @pytest.mark.parametrize("count", [2, 5])
 def test_a_straight_open_curve_is_swept_in_its_own_plane(addon, count):
     """A straight rope (an open 2D curve with a bevel) lies in many planes: it is rigged in the

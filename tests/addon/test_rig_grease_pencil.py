@@ -175,3 +175,34 @@ def test_a_layer_named_with_a_comma_can_be_chosen_and_hidden_layers_rigged_are_n
     hidden.data.layers["Fills"].hide = True  # a reference drawing, say: it still shapes the rig
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert "the hidden layer 'Fills' is part of the shape" in capsys.readouterr().out
+
+
+def test_a_drawing_far_from_its_origin_stays_put_at_bind(addon):
+    """A stroke 2.6 wide drawn 1e6 from its object's origin (float32 steps there: 0.0625):
+    Bind and a handle, nothing moved, threw points 62,680 away (each triangle's map applied in
+    absolute coordinates, its rounding times 1e6). Maps applied about their triangle's corner
+    keep it within a few steps of the data's own precision."""
+    import math
+
+    bpy.ops.object.grease_pencil_add(type="EMPTY")
+    obj = bpy.context.active_object
+    layer = obj.data.layers[0] if len(obj.data.layers) else obj.data.layers.new("Lines")
+    drawing = (layer.current_frame() or layer.frames.new(bpy.context.scene.frame_current)).drawing
+    t = np.linspace(0, 2 * math.pi, 48, endpoint=False)
+    far = 1e6
+    points = np.stack([far + np.cos(t) * (1 + 0.3 * np.cos(3 * t)), np.zeros_like(t), 0.5 * np.sin(t)], axis=1)
+    drawing.add_strokes([len(points)])
+    drawing.attributes["position"].data.foreach_set("vector", points.astype(np.float32).ravel())
+    radius = drawing.attributes.get("radius") or drawing.attributes.new("radius", "FLOAT", "POINT")
+    radius.data.foreach_set("value", np.full(len(points), 0.02, np.float32))
+    cyclic = drawing.attributes.get("cyclic") or drawing.attributes.new("cyclic", "BOOLEAN", "CURVE")
+    cyclic.data.foreach_set("value", np.ones(1, bool))
+    bpy.context.view_layer.update()
+    checks.select_only(obj)
+    rest = checks.evaluated_drawing_points(obj).astype(float).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, rest[0]))
+    bpy.context.view_layer.update()
+    step = float(np.spacing(np.float32(far)))
+    assert np.abs(checks.evaluated_drawing_points(obj) - rest).max() <= 4 * step
+

@@ -355,3 +355,84 @@ def test_long_thin_faces_are_flagged_at_bind_and_refine_keeps_them_from_folding(
     assert flipped[0] > 0.1
     assert flipped[3] < 0.5 * flipped[0]
     assert len(obj.data.vertices) == 11  # subdivided in the modifier only
+
+
+# -- adversarial shapes --------------------------------------------------------------------------
+
+def flat_mesh(name, points, faces):
+    """A mesh object of 2D ``points`` in the XY plane, linked to the scene and active."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([(x, y, 0.0) for x, y in points], [], faces)
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    checks.select_only(obj)
+    return obj
+
+
+def strip(width, height, columns, rows=1):
+    """Points and quads of a ``width`` x ``height`` grid centred on the origin."""
+    points = [(width * (i / columns - 0.5), height * (j / rows - 0.5))
+              for j in range(rows + 1) for i in range(columns + 1)]
+    faces = [[j * (columns + 1) + i + k for k in (0, 1, columns + 2, columns + 1)]
+             for j in range(rows) for i in range(columns)]
+    return points, faces
+
+
+def test_a_hairline_strip_binds_and_takes_handles(addon, quiet):
+    """A strip 30,000 times longer than wide: Add Handle raised Qhull's error with a traceback
+    (the coarse copy a solve may start from could not be triangulated), and so did every later
+    update; a strip 1e6 times longer was refused as having "no faces" (joining coincident
+    vertices within 1e-6 of its length joined each face's top and bottom)."""
+    obj = flat_mesh("Sliver", *strip(3e4, 1.0, 50))
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert bpy.ops.shapedeform.add_handle(location=(-1.5e4, 0.0, 0.0)) == {"FINISHED"}
+    handle = checks.add_handle(obj, (1.5e4, 0.0, 0.0))
+    handle.location.y += 1.0
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    assert np.all(np.isfinite(checks.evaluated_mesh_points(obj)))
+    flat_mesh("Strip", *strip(1e6, 1.0, 50))
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+
+
+def test_blenders_plane_takes_a_handle_at_each_corner(addon):
+    """Add > Mesh > Plane (four corners, nothing inside) is rigged by its outline: a handle at
+    a corner moves that corner (with its own graph of four points a corner's handle took three
+    corners, moved them rigidly, and a third handle was refused)."""
+    bpy.ops.mesh.primitive_plane_add()
+    plane = bpy.context.active_object
+    corners = checks.mesh_points(plane).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    handles = [checks.add_handle(plane, checks.world(plane, c)) for c in corners]
+    handles[0].location.x -= 0.5
+    bpy.context.view_layer.update()
+    moved = np.linalg.norm((checks.evaluated_mesh_points(plane) - corners)[:, :2], axis=1)
+    np.testing.assert_allclose(moved, [0.5, 0.0, 0.0, 0.0], atol=1e-4)
+
+
+def test_a_degenerate_face_beside_the_shape_is_left_out(addon):
+    """A grid and, beside it, a face whose corners are on one line (what Degenerate Dissolve is
+    for): Bind refused the whole mesh ("ring 1 has zero area"); the flat face is left out of the
+    outline and its points follow the nearest part."""
+    points, faces = strip(2.0, 1.0, 4, 2)
+    n = len(points)
+    obj = flat_mesh("Grid", points + [(1.5, 0.0), (2.0, 0.0), (2.5, 0.0)], faces + [[n, n + 1, n + 2]])
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert obj.shapedeform.status == ""
+
+
+def test_a_pose_does_not_depend_on_the_shapes_size(addon):
+    """The same grid at two sizes, dragged by the same fraction of its size: the same pose (a
+    handle's region took two of a vertex's four equally near neighbours, chosen by rounding, so
+    the poses differed by 1% of the width)."""
+    poses = []
+    for width in (2.0, 0.2):
+        obj = flat_mesh(f"Grid {width}", *strip(width, width / 2, 12, 6))
+        rest = checks.mesh_points(obj).astype(float)
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+        checks.add_handle(obj, (-width / 2, 0.0, 0.0))
+        right = checks.add_handle(obj, (width / 2, 0.0, 0.0))
+        right.matrix_world.translation = Vector((width / 2, 0.3 * width / 2, 0.0))
+        bpy.context.view_layer.update()
+        poses.append((checks.evaluated_mesh_points(obj).astype(float) - rest)[:, :2] / width)
+    assert np.abs(poses[0] - poses[1]).max() < 1e-4

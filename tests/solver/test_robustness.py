@@ -112,3 +112,15 @@ def test_valid_shapes_build_solve_and_bind(name):
     rounding = 1e-12 * size + 1e-13 * np.abs(graph.points).max()
     assert np.abs(binding.apply(graph.points) - points).max() <= rounding
     assert np.all(np.isfinite(binding.apply(pose.positions)))
+
+
+def test_a_shape_too_thin_to_triangulate_is_refused_by_name():
+    """Qhull's own error (a RuntimeError with a traceback in Blender's console) becomes a
+    ValueError saying what is wrong: the coarse copy a solve may start from is then skipped."""
+    from solver.triangulate import filtered_delaunay
+    import shapely
+
+    points = np.column_stack([np.linspace(0.0, 1.0, 20), np.zeros(20)])
+    points[::2, 1] = 1e-17
+    with pytest.raises(ValueError, match="too thin to triangulate"):
+        filtered_delaunay(points, shapely.box(0.0, 0.0, 1.0, 1e-17))

@@ -64,6 +64,17 @@ def test_select_region_respects_radius_minimum_and_taken():
         select_region(points, [0, 0], 1.0, taken=np.ones(32, bool))
 
 
+@pytest.mark.parametrize("scale, offset", [(1.0, 0.0), (0.1, 0.0), (1.0, 1e3), (7.3, -40.0)])
+def test_select_region_takes_every_point_tied_with_the_last(scale, offset):
+    """On a grid a vertex's four neighbours are equally near: a region of at least three takes
+    all of them, whatever the grid's size and place (rounding picked two by the scale), also
+    from float32 coordinates, whose rounding differs from neighbour to neighbour."""
+    x, y = np.meshgrid(np.arange(5.0), np.arange(5.0))
+    points = (np.column_stack([x.ravel(), y.ravel()]) * scale + offset).astype(np.float32)
+    region = select_region(points, points[12], radius=1e-6)
+    assert sorted(region.tolist()) == [7, 11, 12, 13, 17]
+
+
 def test_rest_position_inverts_a_pose():
     graph = solver.build_graph([disk(1.0, 48)])
     posed = graph.points * [2.0, 1.0] + [3.0, 0.0]

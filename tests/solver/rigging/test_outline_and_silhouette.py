@@ -6,7 +6,7 @@ import pytest
 import shapely
 
 from solver.rigging.handles import apply_affine
-from solver.rigging.outline import boundary_loops, sample_bezier
+from solver.rigging.outline import boundary_loops, sample_bezier, with_area
 from solver.rigging.silhouette import fit_affine, image_cutout, stroke_silhouette
 from solver.shapes import shape_geometry
 
@@ -110,3 +110,11 @@ def test_smallest_angles():
     points = np.array([[0, 0], [1, 0], [0.5, np.sqrt(3) / 2], [2, 0], [1, 1e-3], [0, 0]])
     angles = smallest_angles(points, [[0, 1, 2], [0, 3, 4], [0, 1, 5]])
     np.testing.assert_allclose(angles, [np.pi / 3, np.arctan(1e-3), 0.0], atol=1e-9)
+
+
+def test_with_area_leaves_out_rings_on_one_line():
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
+    line = np.array([[2, 0], [3, 0], [4, 0]], dtype=float)
+    kept = with_area([line, square, line[:2]])
+    assert len(kept) == 1 and kept[0] is square
+
