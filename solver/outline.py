@@ -4,6 +4,8 @@ that gives about that many points, and the outline simplified to it.
 
 from __future__ import annotations
 
+import numpy as np
+
 from .shapes import shape_geometry
 
 __all__ = ["spacing_for_count", "simplify_rings", "outline_graph"]
@@ -29,10 +31,15 @@ def spacing_for_count(rings, count):
 
 
 def simplify_rings(rings, tolerance):
-    """Rings with points that add less than ``tolerance`` of detail removed (topology kept).
+    """Rings with points that add less than ``tolerance`` of detail removed (topology kept),
+    and holes and islands thinner than ``tolerance`` left out.
 
     A dense mesh's outline or a finely swept silhouette has far more boundary points than the
-    graph needs; the graph's own boundary is then subdivided to its spacing again.
+    graph needs; the graph's own boundary is then subdivided to its spacing again. A ring
+    thinner than the detail kept (twice its area over its length: a needle's width, a disk's
+    radius) is no detail of the shape, and the triangulation would refine round it without
+    end (a closed spline whose points were on one line to float32 rounding, inside a circle,
+    gave 55,000 points): it goes, unless it is all there is.
 
     Parameters
     ----------
@@ -51,7 +58,17 @@ def simplify_rings(rings, tolerance):
     simplified = shapely.simplify(geometry, tolerance, preserve_topology=True)
     if simplified.is_empty or not simplified.is_valid:
         simplified = geometry
-    return [ring for island in geometry_rings(simplified) for ring in island]
+    islands = geometry_rings(simplified)
+    kept = [[island[0]] + [hole for hole in island[1:] if _width(hole) >= tolerance]
+            for island in islands if _width(island[0]) >= tolerance]
+    return [ring for island in (kept or islands) for ring in island]
+
+
+def _width(ring):
+    """Twice the area of a ring (k, 2) over its length."""
+    following = np.roll(ring, -1, axis=0)
+    area = 0.5 * abs(float(np.dot(ring[:, 0], following[:, 1]) - np.dot(following[:, 0], ring[:, 1])))
+    return 2.0 * area / max(float(np.linalg.norm(following - ring, axis=1).sum()), 1e-300)
 
 
 def outline_graph(rings, count, detail=0.02):

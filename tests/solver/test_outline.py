@@ -20,3 +20,21 @@ def test_outline_graph_of_a_dense_outline_has_about_count_points():
     assert len(simplify_rings([square], 1e-3)[0]) == 4
     graph = outline_graph([square], 100)
     assert 100 < graph.n < 250
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_needle_hole_thinner_than_the_detail_kept_is_left_out(seed):
+    """A closed spline whose points are on one line to float32 rounding, inside a disk: its
+    needle of a hole made the triangulation refine without end (30,000-55,000 points, 6-16 s,
+    for a count of 300). Holes and islands thinner than the detail kept go; a thin shape alone
+    stays."""
+    rng = np.random.default_rng(seed)
+    start = rng.uniform(-0.5, 0.5, 2)
+    direction = rng.uniform(-0.3, 0.3, 2)
+    t = np.linspace(0.0, 1.0, 12)[:, None]
+    needle = np.concatenate([start + t * direction, (start + t[::-1] * direction)[1:-1]])
+    needle = needle + rng.normal(scale=1e-8, size=needle.shape)  # float32 rounding's width
+    graph = outline_graph([disk(1.0, 60), needle], 300)
+    assert graph.n < 600 and len(graph.boundary_loops) == 1
+    sliver = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1e-4], [0.0, 1e-4]])
+    assert len(simplify_rings([sliver], 0.01)) == 1
