@@ -11,8 +11,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from ..solver.rigging.handles import (distance_off, frame_2d, handle_matrix, place, region_offsets,
-                                      select_region)
+from ..solver.rigging.handles import (MIN_REGION_POINTS, distance_off, frame_2d, handle_matrix, place,
+                                      region_offsets, select_region)
 from ..solver.rigging.plane import affine_inverse
 from . import nodes, rig_format
 from . import rig as rigs
@@ -160,9 +160,15 @@ def add_all(obj, locations, kind="POSITION", on_rest=False, notes=None):
     try:
         for location in locations:
             added.append(add(obj, location, on_rest=on_rest, kind=kind, notes=notes))
-    except RigError:
+    except RigError as err:
+        rig = rigs.get(obj)
+        exhausted = len(np.unique(rig.indices)) >= rig.graph.n
         if added:
             remove(obj, set(added))
+        if exhausted and len(locations) > 1:  # say how many fit, and what to do
+            raise RigError(f"{err}: {len(added)} of the {len(locations)} handles asked for fit (each holds at "
+                           f"least {MIN_REGION_POINTS} points of the shape); select fewer points. None was added") \
+                from None
         raise
     return added
 

@@ -3,6 +3,7 @@
 
 import bpy
 import numpy as np
+import pytest
 
 import rig_checks as checks
 from test_rig_curve import text_curve
@@ -107,3 +108,19 @@ def test_in_object_mode_a_handle_goes_to_the_3d_cursor(addon):
     location = handle_locations(obj)[0]
     np.testing.assert_allclose(location[:2], (0.8, -1.1), atol=1e-6)
     assert abs(location[2] - obj.matrix_world.translation.z) < 1e-6
+
+
+def test_more_selected_points_than_handles_fit_says_how_many_fit(addon):
+    """Every vertex of a grid selected in Edit Mode: Add Handle refused with "every point of
+    the shape already belongs to a handle", which did not say why (each handle holds a few
+    points, so 91 do not fit on 91 points) nor what to do. Nothing is added either way."""
+    from test_rig_mesh import grid
+
+    obj = grid()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="SELECT")
+    with pytest.raises(RuntimeError, match=r"of the 91 handles asked for fit .* select fewer points"):
+        bpy.ops.shapedeform.add_handle()
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert len(obj.shapedeform.handles) == 0
