@@ -181,8 +181,10 @@ def _interactive():
 
 @persistent
 def on_undo(*_args):
-    """Undo or redo: rigs are rebuilt lazily from the data of the step restored."""
+    """Undo or redo: rigs are rebuilt lazily from the data of the step restored; a pose it
+    restored that a Viewport solve left short is refined as after any move."""
     rig.forget()
+    _refine_later()
 
 
 @persistent

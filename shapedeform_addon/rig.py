@@ -280,10 +280,10 @@ def pose(obj, depsgraph=None, final=None):
         raise RigError(f"'{owner.name}': {err}") from None
     if not np.all(np.isfinite(points)):
         raise RigError(f"'{owner.name}': the solve gave non-finite positions; kept the last pose")
-    if not rig_format.is_baked(owner):
-        rig_format.write_pose(settings.cage, np.ascontiguousarray(points))
-    rig.posed, rig.shown = positions, points
     rig.settled = rig.settled or final
+    if not rig_format.is_baked(owner):
+        rig_format.write_pose(settings.cage, np.ascontiguousarray(points), rig.settled)
+    rig.posed, rig.shown = positions, points
     _deferred.discard(owner.session_uid)
     return rig
 
@@ -296,9 +296,10 @@ def defer(obj):
 
 def unsettled(scene):
     """Rig owners of ``scene`` whose shown pose is not what a render gives: a Viewport-budget
-    solve that did not converge, or one :func:`defer` left behind."""
-    return [obj for obj in rig_format.owners(scene)
-            if obj.session_uid in _deferred or not getattr(_cache.get(obj.session_uid), "settled", True)]
+    solve that did not converge (also one an undo step brought back, marked on its cage), or
+    one :func:`defer` left behind."""
+    return [obj for obj in rig_format.owners(scene) if obj.session_uid in _deferred or (
+        not _cache[obj.session_uid].settled if obj.session_uid in _cache else rig_format.is_unsettled(obj))]
 
 
 def pose_safely(obj, depsgraph=None, final=None):

@@ -56,6 +56,7 @@ HANDLE_INDICES = "indices"  # on a handle's item: the graph points it owns
 HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when it was added
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
 CAGE_STAMP = "shapedeform_cage"  # on a cage's mesh: the owner's cage object it belongs to
+UNSETTLED = "shapedeform_unsettled"  # on a cage's mesh: its pose is a Viewport solve that stopped short
 # Kept by older versions, which wrote poses into the object's own data: read only to give the
 # rest shape back (``restore_legacy`` of each source), dropped on unbind.
 LEGACY_GP_LAYERS, LEGACY_GP_FRAMES = "gp_layers", "gp_frames"
@@ -184,18 +185,30 @@ def own_mesh(cage):
     return mesh
 
 
-def write_pose(cage, points):
+def write_pose(cage, points, settled=True):
     """Write the pose (n, 3) float32 into the cage (:func:`own_mesh`); False when a bake holds
-    it (shape keys) or the cage is library data."""
+    it (shape keys) or the cage is library data. ``settled`` False marks it as a solve that
+    stopped short of what a render gives, kept with the pose so that an undo step holding it
+    brings the mark back (:func:`is_unsettled`)."""
     mesh = own_mesh(cage)
     if mesh is None or mesh.shape_keys is not None:
         return False
+    if settled:
+        mesh.pop(UNSETTLED, None)
+    elif not mesh.get(UNSETTLED):
+        mesh[UNSETTLED] = True
     position = mesh.attributes["position"].data
     if len(points) == len(mesh.vertices) and np.array_equal(_points(mesh, position), points):
         return True  # already shown: writing would have Blender evaluate every deformed object again
     position.foreach_set("vector", points.ravel())
     mesh.update()
     return True
+
+
+def is_unsettled(owner):
+    """Whether ``owner``'s cage shows a pose marked unsettled by :func:`write_pose`."""
+    cage = owner.shapedeform.cage
+    return cage is not None and cage.data is not None and bool(cage.data.get(UNSETTLED))
 
 
 def follow_library_cage(cage):

@@ -656,6 +656,42 @@ def test_undo_of_an_unrelated_edit_rebuilds_no_rig(addon, tmp_path, quiet):
     assert rig_module._cache == {}
 
 
+@pytest.mark.parametrize("next_step", ["frame step", "an unrelated edit"])
+def test_undo_back_to_a_viewport_pose_refines_it(addon, monkeypatch, next_step, quiet):
+    """A handle moved in a window (Viewport budget, stopping short), refined 0.3 s later, then
+    another step, then Ctrl+Z back to the move: the step holds the unrefined pose, and nothing
+    refined it (the cache that knew it was unsettled was dropped by the undo), so the viewport
+    showed a pose 0.2 from what renders. The mark is kept on the cage with the pose."""
+    shapedeform = addon.shapedeform_addon
+    obj = grid()
+    left, right = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
+    obj.shapedeform.iterations = 1  # so the Viewport solve stops short
+    monkeypatch.setattr(shapedeform.rig, "final_quality", lambda: False)  # as in a window
+    bpy.ops.ed.undo_push(message="Original")
+    right.location.y += 0.6
+    right.rotation_euler.z += 0.8
+    bpy.context.view_layer.update()  # the last mouse move of G: a Viewport solve
+    bpy.ops.ed.undo_push(message="Move")  # G confirmed: its step holds this pose
+    refine = shapedeform.handlers.refine
+    assert bpy.app.timers.is_registered(refine)
+    bpy.app.timers.unregister(refine)
+    refine()  # the timer, 0.3 s later (timers do not run headless)
+    bpy.context.view_layer.update()
+    refined = checks.evaluated_mesh_points(obj).copy()
+    if next_step == "frame step":
+        assert bpy.ops.screen.frame_offset("EXEC_DEFAULT", True, delta=1) == {"FINISHED"}
+    else:
+        bpy.context.scene.collection.objects.link(bpy.data.objects.new("Other", None))
+        bpy.ops.ed.undo_push(message="Add Empty")
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    assert bpy.app.timers.is_registered(refine)
+    bpy.app.timers.unregister(refine)
+    refine()
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(checks.evaluated_mesh_points(bpy.data.objects["Grid"]), refined, atol=1e-5)
+
+
 # -- save and reload ---------------------------------------------------------------------------
 
 @pytest.mark.parametrize("make", [pytest.param(make_curve, id="text curve"), pytest.param(make_bezier, id="bezier"),
