@@ -283,9 +283,10 @@ def follow(obj):
     the owner's cage, a duplicate read the rig in the owner's data space, and jumped when either
     data was transformed. A follower made by an older version gets its cage here too.
     """
-    if not all(m.node_group.get(nodes.VERSION_KEY) == nodes.VERSION for m in rig_format.modifiers_of(obj)):
-        # A linked library's older group: it reads the rig's cage in the space its Owner input
-        # names, which duplicating pointed at the copy.
+    if any(nodes.LEGACY_OWNER_INPUT in nodes.input_identifiers(m.node_group) for m in rig_format.modifiers_of(obj)):
+        # A linked library's group from before followers had cages of their own: it reads the
+        # rig's cage in the space its Owner input names, which duplicating pointed at the copy.
+        # (A group of any later version, older than this one or not, takes the cage below.)
         return rig_format.point_inputs(obj, {nodes.LEGACY_OWNER_INPUT: obj.shapedeform.cage.shapedeform.rig})
     cage = obj.shapedeform.cage
     followed = _rig_followed(obj)

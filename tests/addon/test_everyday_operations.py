@@ -1244,6 +1244,25 @@ def test_an_override_saved_without_the_extension_keeps_its_rig(addon, tmp_path, 
     np.testing.assert_allclose(evaluated(obj), baked, atol=1e-4)
 
 
+def test_a_copy_of_an_override_with_an_older_librarys_group_gets_its_own_cage(addon, tmp_path, quiet):
+    """A library saved by an earlier version of the extension (its group one version older, but
+    with cages for followers already): a Shift+D copy of the shot's override took the branch
+    for groups from before followers had cages, and kept reading the original's cage."""
+    nodes = addon.shapedeform_addon.nodes
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    obj.modifiers[0].node_group[nodes.VERSION_KEY] = nodes.VERSION - 1
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    obj = override_in_a_new_shot(library)
+    checks.select_only(obj)
+    bpy.ops.object.duplicate()
+    bpy.context.view_layer.update()
+    copy = bpy.context.active_object
+    assert copy != obj and copy.shapedeform.cage != obj.shapedeform.cage
+    assert copy.shapedeform.cage.parent == copy
+
+
 def test_a_character_appended_twice_reusing_data_gets_two_rigs(addon, tmp_path, quiet):
     """Append with Reuse Data (the Asset Browser's way for a user's own library) twice: the
     two copies' cages shared one mesh, so each showed whichever rig posed last (a handle of the
