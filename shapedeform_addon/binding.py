@@ -79,6 +79,7 @@ def bind(obj):
         # interface during renders (saved in the file, so farm and F12 renders are safe).
         scene.render.use_lock_interface = True
     rig.forget(obj)
+    rig_format.forget_bound()
     return rig.get(obj), prepared.advice
 
 
@@ -130,4 +131,5 @@ def unbind(obj):
     rig_format.forget(obj)
     handles.remove_all(obj)
     rig.forget(obj)
+    rig_format.forget_bound()
     return lost

@@ -184,6 +184,7 @@ def on_undo(*_args):
     """Undo or redo: rigs are rebuilt lazily from the data of the step restored; a pose it
     restored that a Viewport solve left short is refined as after any move."""
     rig.forget()
+    rig_format.forget_bound()
     _refine_later()
 
 
@@ -193,6 +194,7 @@ def on_load(*_args):
     as followers of their rig and every rig of the scene is posed, so a file edited while the extension was
     disabled (a handle moved, an object duplicated) shows what its handles say at once."""
     rig.forget()
+    rig_format.forget_bound()
     sync_scene()
 
 

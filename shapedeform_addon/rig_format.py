@@ -426,8 +426,7 @@ def owners(scene, depsgraph=None):
         owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
         if _posable_owner(owner):
             found.append(owner)
-    if len(bpy.data.objects) != len(objects):  # objects outside what was walked: maybe shown otherwise
-        found += _evaluated_owners(scene, depsgraph, set(found))
+    found += _evaluated_owners(scene, depsgraph, set(found))
     return list(dict.fromkeys(found))  # shown twice, posed once
 
 
@@ -438,12 +437,38 @@ def _evaluated_owners(scene, depsgraph, known):
             return []
         depsgraph = view_layer.depsgraph
     found = []
-    for obj in bpy.data.objects:
-        if obj.shapedeform.is_bound and obj not in known and obj.evaluated_get(depsgraph).is_evaluated:
-            owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
-            if owner not in known and _posable_owner(owner):
-                found.append(owner)
+    try:
+        for obj in bound_objects():
+            if obj not in known and obj.shapedeform.is_bound and obj.evaluated_get(depsgraph).is_evaluated:
+                owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
+                if owner not in known and _posable_owner(owner):
+                    found.append(owner)
+    except ReferenceError:  # an object removed and another added since the list was made
+        forget_bound()
+        return _evaluated_owners(scene, depsgraph, known)
     return found
+
+
+# The bound objects of the file, owners and followers: what :func:`owners` looks through for
+# rigs the scene shows by other ways than its objects, on every frame. Made again when the
+# file's number of objects changes (a bind makes a cage, a duplicate or an append adds objects,
+# a delete removes them); dropped when a file is opened, an undo step restored, or an object
+# bound or unbound (:func:`forget_bound`).
+_bound = {"count": -1, "objects": []}
+
+
+def bound_objects():
+    """Every bound object of the file (owners and followers), a list kept between calls."""
+    count = len(bpy.data.objects)
+    if count != _bound["count"]:
+        _bound["objects"] = [obj for obj in bpy.data.objects if obj.shapedeform.is_bound]
+        _bound["count"] = count
+    return _bound["objects"]
+
+
+def forget_bound():
+    """Drop the list :func:`bound_objects` keeps."""
+    _bound["count"], _bound["objects"] = -1, []
 
 
 def _posable_owner(obj):

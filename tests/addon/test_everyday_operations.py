@@ -1403,6 +1403,35 @@ def test_a_collection_shown_by_geometry_nodes_in_another_scene_follows_its_handl
     assert addon.shapedeform_addon.rig_format.is_baked(bpy.data.objects[name])
 
 
+def test_a_rig_shown_by_geometry_nodes_poses_beside_an_instanced_one(addon, tmp_path, quiet):
+    """Character A in the scene and also shown by a Collection Instance, character B in no
+    scene and shown by a Collection Info node: B poses (it was looked for only when the file
+    held more objects than the scene walk counted, and A's instance made the counts equal)."""
+    first_collection, first = character_collection(tmp_path)
+    Rigged(first)
+    second_collection = bpy.data.collections.new("Character B")
+    bpy.context.scene.collection.children.link(second_collection)
+    second = grid("Grid B")
+    for collection in second.users_collection:
+        collection.objects.unlink(second)
+    second_collection.objects.link(second)
+    rig = Rigged(second)
+    scene = bpy.context.scene
+    rig.second.keyframe_insert("location", frame=1)
+    rig.second.location.y += 0.8
+    rig.second.keyframe_insert("location", frame=10)
+    scene.frame_set(10)
+    posed = evaluated(second).copy()
+    scene.frame_set(1)
+    scene.collection.children.unlink(second_collection)
+    instance = bpy.data.objects.new("Character Instance", None)
+    instance.instance_type, instance.instance_collection = "COLLECTION", first_collection
+    scene.collection.objects.link(instance)
+    scene.collection.objects.link(collection_info_host(second_collection))
+    scene.frame_set(10)
+    np.testing.assert_allclose(instanced_points(second), posed, atol=1e-5)
+
+
 def test_the_command_line_bakes_an_instanced_rig_named_by_its_handle(addon, tmp_path, capsys):
     """A shot shows the character only through a Collection Instance: ``--objects`` takes its
     handle's name for its rig, as it takes a handle of the scene's own."""
