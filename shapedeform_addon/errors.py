@@ -7,6 +7,10 @@ class RigError(Exception):
     """An object cannot be rigged (or its rig cannot run); the message is for the user."""
 
 
+class NoPointsLeft(RigError):
+    """Every point of the shape already belongs to a handle: no other handle fits."""
+
+
 def with_article(noun):
     """``noun`` after "a" or "an", for messages ("an empty", "a camera").
 

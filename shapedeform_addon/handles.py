@@ -16,7 +16,7 @@ from ..solver.rigging.handles import (MIN_REGION_POINTS, distance_off, frame_2d,
 from ..solver.rigging.plane import affine_inverse
 from . import nodes, rig_format
 from . import rig as rigs
-from .errors import RigError
+from .errors import NoPointsLeft, RigError
 
 
 FOLLOW = "Shape Deform"  # the constraint by which a handle follows a curve with path animation
@@ -107,8 +107,8 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     taken[rig.indices] = True
     try:
         region = select_region(graph.points, rest_centre, settings.region_size * graph.size, taken)
-    except ValueError as err:
-        raise RigError(str(err)) from None
+    except ValueError as err:  # every point is taken
+        raise NoPointsLeft(str(err)) from None
     radius = settings.region_size * graph.size
     matrix = handle_matrix(rig.plane, point)
     offsets = region_offsets(frame_2d(rig.plane, matrix), rig.posed[region])
@@ -161,14 +161,12 @@ def add_all(obj, locations, kind="POSITION", on_rest=False, notes=None):
         for location in locations:
             added.append(add(obj, location, on_rest=on_rest, kind=kind, notes=notes))
     except RigError as err:
-        rig = rigs.get(obj)
-        exhausted = len(np.unique(rig.indices)) >= rig.graph.n
         if added:
             remove(obj, set(added))
-        if exhausted and len(locations) > 1:  # say how many fit, and what to do
-            raise RigError(f"{err}: {len(added)} of the {len(locations)} handles asked for fit (each holds at "
-                           f"least {MIN_REGION_POINTS} points of the shape); select fewer points. None was added") \
-                from None
+        if isinstance(err, NoPointsLeft) and len(locations) > 1:  # say how many fit, and what to do
+            raise NoPointsLeft(f"{err}: {len(added)} of the {len(locations)} handles asked for fit (each holds "
+                               f"{MIN_REGION_POINTS} or more points of the shape); select fewer points. None was "
+                               "added") from None
         raise
     return added
 
