@@ -62,23 +62,23 @@ def edges(mesh):
 
 def _welded(rest, flat, tris, mesh_edges):
     """The mesh with its faces joined where their edges lie on one another (within 1e-6 of its
-    size, or a quarter of its shortest edge if less): a mesh whose faces share no vertices (an OBJ import, Edge Split) is one piece, not an
+    size): a mesh whose faces share no vertices (an OBJ import, Edge Split) is one piece, not an
     island per face. Islands that only overlap (a puppet's arm over its body) stay apart, even
     where a vertex of one lies on a vertex of the other. (Where joined faces meet at a corner
     only, :func:`prepare` rigs the outline.) Returns (flat points (p, 2), triangles, edges):
     the mesh as it is when nothing joins."""
     size = float(np.linalg.norm(np.ptp(rest, axis=0)))
-    # Never as far as a quarter of a face's shortest edge, so no face is joined to itself (a
-    # strip a million times longer than wide lost every face).
-    sides = np.linalg.norm(rest[tris] - rest[np.roll(tris, 1, axis=1)], axis=2)
-    shortest = float(sides[sides > 0].min()) if (sides > 0).any() else size
-    pairs = cKDTree(rest).query_pairs(min(1e-6 * size, 0.25 * shortest), output_type="ndarray")
+    pairs = cKDTree(rest).query_pairs(1e-6 * size, output_type="ndarray")
+    # Corners of one triangle are never joined (a strip a million times longer than wide is
+    # that thin: it lost every face).
+    n = len(rest)
+    corner_pairs = np.sort(tris[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    pairs = pairs[~np.isin(pairs[:, 0] * n + pairs[:, 1], corner_pairs[:, 0] * n + corner_pairs[:, 1])]
     if len(pairs) == 0:
         return flat, tris, mesh_edges
-    n = len(rest)
     _, place = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
                                     directed=False)
-    sides, uses = np.unique(np.sort(tris[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0, return_counts=True)
+    sides, uses = np.unique(corner_pairs, axis=0, return_counts=True)
     open_sides = sides[uses == 1]
     _, side_place, lying = np.unique(np.sort(place[open_sides], axis=1), axis=0, return_inverse=True,
                                      return_counts=True)
