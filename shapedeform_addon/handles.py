@@ -128,13 +128,13 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     return empty
 
 
-def _new_handle_empty(obj, rig_matrix, radius):
-    """A handle's Empty at ``rig_matrix`` (4x4, rig space), parented so it follows the owner."""
+def _new_handle_empty(obj, world_matrix, radius):
+    """A handle's Empty at ``world_matrix`` (4x4), parented so it follows the owner."""
     empty = bpy.data.objects.new(f"{obj.name} Handle", None)
     empty.empty_display_type = "CIRCLE"
     empty.empty_display_size = radius
     collection(obj).objects.link(empty)
-    cage_local = affine_inverse(np.array(obj.matrix_world, dtype=np.float64)) @ rig_matrix
+    local = affine_inverse(np.array(obj.matrix_world, dtype=np.float64)) @ world_matrix  # in the owner's space
     if obj.type == "CURVE" and obj.data.use_path:
         # A curve with path animation carries its children along the path (and a child would
         # depend on the geometry the rig makes): follow its transform alone, by constraint, as
@@ -142,14 +142,14 @@ def _new_handle_empty(obj, rig_matrix, radius):
         follow = empty.constraints.new("CHILD_OF")
         follow.name, follow.target = FOLLOW, obj
         follow.inverse_matrix.identity()
-        empty.matrix_basis = Matrix(cage_local.tolist())
+        empty.matrix_basis = Matrix(local.tolist())
     else:
         # Its own transform in rig space (:func:`keep_in_rig_space`). Matrices, not lists: a
         # nested list would be read column by column.
         empty.parent = obj
         to_object = rig_format.rig_to_object(obj)
         empty.matrix_parent_inverse = Matrix(to_object.tolist())
-        empty.matrix_basis = Matrix((affine_inverse(to_object) @ cage_local).tolist())
+        empty.matrix_basis = Matrix((affine_inverse(to_object) @ local).tolist())
     return empty
 
 

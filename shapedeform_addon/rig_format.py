@@ -493,8 +493,9 @@ def relink_overrides():
     if not overrides:
         return
     for obj in bpy.data.objects:
-        if obj.library is None and obj.override_library is not None:
-            _relink(obj.shapedeform, obj.override_library.hierarchy_root, overrides)
+        settings = obj.shapedeform
+        if obj.library is None and obj.override_library is not None and (settings.is_bound or settings.rig):
+            _relink(settings, obj.override_library.hierarchy_root, overrides)
 
 
 def _relink(group, root, overrides):

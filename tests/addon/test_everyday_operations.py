@@ -692,6 +692,25 @@ def test_undo_back_to_a_viewport_pose_refines_it(addon, monkeypatch, next_step, 
     np.testing.assert_allclose(checks.evaluated_mesh_points(bpy.data.objects["Grid"]), refined, atol=1e-5)
 
 
+def test_a_bake_leaves_no_unsettled_mark(addon, monkeypatch, quiet):
+    """A Viewport pose that stopped short, then a bake: the bake shows what renders, so after
+    an undo or a reopening nothing is listed for refining (the mark stayed on the baked cage,
+    and every undo scheduled a refine that had nothing to do)."""
+    shapedeform = addon.shapedeform_addon
+    obj = grid()
+    _, right = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
+    obj.shapedeform.iterations = 1
+    monkeypatch.setattr(shapedeform.rig, "final_quality", lambda: False)
+    right.location.y += 0.6
+    right.rotation_euler.z += 0.8
+    bpy.context.view_layer.update()
+    assert shapedeform.rig_format.is_unsettled(obj)
+    assert shapedeform.bake.bake_objects([obj], 1, 3) == [obj]
+    shapedeform.rig.forget()
+    assert not shapedeform.rig_format.is_unsettled(obj)
+    assert shapedeform.rig.unsettled(bpy.context.scene) == []
+
+
 # -- save and reload ---------------------------------------------------------------------------
 
 @pytest.mark.parametrize("make", [pytest.param(make_curve, id="text curve"), pytest.param(make_bezier, id="bezier"),
