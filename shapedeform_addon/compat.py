@@ -70,18 +70,23 @@ def set_modifier_input(modifier, identifier, value):
         modifier[identifier] = value
 
 
+# The first Blender whose grease-pencil strokes say whether they are filled (``fill_id``).
+STROKES_MARK_FILLS = (5, 1, 0)
+
+
 def fills_strokes(material):
     """Whether a grease-pencil ``material`` may fill strokes drawn with it, closed or not.
 
-    Up to Blender 5.1 the material's Fill switch decides for every stroke drawn with it. 5.2
+    Up to Blender 5.0 the material's Fill switch decides for every stroke drawn with it. 5.1
     deprecates that switch (it reads False on materials that fill) and marks each filled stroke
     itself (:func:`filled_strokes`); there a material fills unless its fill is a holdout, which
-    cuts a hole instead, as before.
+    cuts a hole instead, as before. (By version: a drawing with no filled stroke has no mark to
+    tell the two apart.)
     """
     style = material.grease_pencil if material is not None else None
     if style is None:
         return False
-    if bpy.app.version >= (5, 2, 0):
+    if bpy.app.version >= STROKES_MARK_FILLS:
         return not style.use_fill_holdout
     return bool(style.show_fill and not style.use_fill_holdout)
 
@@ -96,14 +101,14 @@ def filled_strokes(material_fills, material_index, fill_id):
     material_index : (s,) int ndarray
         Each stroke's slot, within ``material_fills``.
     fill_id : (s,) int ndarray
-        Blender 5.2's ``fill_id`` stroke attribute (0: not filled; strokes sharing an id make
-        one fill); ignored up to 5.1, which has none.
+        Blender 5.1's ``fill_id`` stroke attribute (0: not filled; strokes sharing an id make
+        one fill); ignored up to 5.0, which has none.
 
     Returns
     -------
     (s,) bool ndarray
     """
     filled = material_fills[material_index]
-    if bpy.app.version >= (5, 2, 0):
+    if bpy.app.version >= STROKES_MARK_FILLS:
         filled = filled & (fill_id != 0)
     return filled

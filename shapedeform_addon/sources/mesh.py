@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 from ... import solver
 from ...solver.outline import outline_graph
 from ...solver.shapes import geometry_rings
+from ...solver.triangulate import triangle_cross
 from ...solver.rigging.outline import boundary_loops, smallest_angles, with_area
 from ...solver.rigging.plane import fit_plane
 from ..errors import RigError
@@ -148,9 +149,8 @@ def prepare(obj, settings):
 
 def _faces_overlap(flat, tris):
     """Whether some of the triangles (t, 3) over points (n, 2) lie on one another."""
-    corners = flat[tris]
-    area = 0.5 * np.abs(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])).sum()
-    covered = shapely.union_all(shapely.polygons(corners)).area
+    area = 0.5 * np.abs(triangle_cross(flat, tris)).sum()
+    covered = shapely.union_all(shapely.polygons(flat[tris])).area
     return covered < area * (1.0 - 1e-6)
 
 

@@ -376,7 +376,7 @@ def figure_seen_from_the_front(overlay=False):
     drawing.add_strokes([4 * per_side] * len(outlines))
     xyz = np.array([(x, 0.0, z) for x, z in points], np.float32)
     drawing.attributes["position"].data.foreach_set("vector", xyz.ravel())
-    # Closed, each in its own material; Blender 5.2 fills a stroke that has a fill_id (and
+    # Closed, each in its own material; Blender 5.1 fills a stroke that has a fill_id (and
     # hide_stroke leaves out its outline), earlier versions fill by material.
     count = len(outlines)
     for name, kind, values in (("cyclic", "BOOLEAN", [True] * count), ("material_index", "INT", range(count)),

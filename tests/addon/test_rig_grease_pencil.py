@@ -80,7 +80,7 @@ def test_strokes_inside_a_fill_move_with_it(addon):
     """The monkey's skin is drawn with a fill material on strokes that are not closed: Blender
     fills them, so the shape is the filled face, and its mouth and eyes move with it (only the
     outlines made the shape: every inner stroke was an island of its own and stayed at rest).
-    Up to 5.1 the material's Fill switch says so; 5.2 marks each filled stroke (``fill_id``)."""
+    Up to 5.0 the material's Fill switch says so; 5.1 marks each filled stroke (``fill_id``)."""
     bpy.ops.object.grease_pencil_add(type="MONKEY")
     obj = bpy.context.active_object
     rest = drawing_points(obj, evaluated=False).copy()
