@@ -4,8 +4,8 @@
 :class:`Rig` holds the solver objects of one owner, rebuilt lazily from what the .blend keeps
 (:mod:`.rig_format`). Its owner is this module's ``_cache``, keyed by ``Object.session_uid``; an
 entry is stale when the owner's handles or settings change (:func:`signature`, or
-:func:`invalidate`) and is dropped by :func:`forget` (after
-load, undo or redo). Posing writes only the cage, a
+:func:`invalidate`) and is dropped by :func:`forget` (after load, undo or redo), or when a new
+rig is cached after its owner left the file. Posing writes only the cage, a
 few hundred points; the object's Shape Deform modifier maps its own points through it.
 
 Coarse copies of graphs (:class:`solver.CoarseCopies`) are kept in ``_coarse_copies`` for every
@@ -183,10 +183,21 @@ def get(obj, depsgraph=None):
         raise RigError(f"'{obj.name}' is not bound")
     rig = _cache.get(owner.session_uid)
     if rig is None or rig.signature != signature(owner, depsgraph):
+        if rig is None:
+            _drop_removed()
         _coarse_copies.kept = max(_coarse_copies.kept, len(_cache) + 1)
         rig = Rig(owner, depsgraph)
         _cache[owner.session_uid] = rig
     return rig
+
+
+def _drop_removed():
+    """Drop the rigs of owners no longer in the file (deleted without an undo or a reload
+    since): a batch that binds, poses and deletes objects kept every one (8 MB each)."""
+    live = {obj.session_uid for obj in bpy.data.objects}
+    for uid in [uid for uid in _cache if uid not in live]:
+        del _cache[uid]
+    _deferred.intersection_update(live)
 
 
 def stale(obj):

@@ -1680,3 +1680,20 @@ def test_a_rig_rebuilt_after_undo_keeps_its_coarse_copy(addon, tmp_path):
     rig.forget()  # what the undo and load handlers do
     again = [start.copy for start in rig.get(obj).deformer._starts if hasattr(start, "copy")]
     assert copies and all(a is b for a, b in zip(copies, again))
+
+
+def test_rigs_of_deleted_objects_are_not_kept(addon, quiet):
+    """A batch binding, posing and deleting objects without an undo in between kept every
+    rig it had built (40 rigs cached, 8 MB each, and the coarse copies' limit raised for them):
+    a rig built later drops those of owners no longer in the file."""
+    rig_module = addon.shapedeform_addon.rig
+    for i in range(6):
+        obj = grid(f"Grid {i}")
+        _, right = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
+        right.location.y += 0.2
+        bpy.context.view_layer.update()
+        leftovers = [item.object for item in obj.shapedeform.handles] + [obj.shapedeform.cage]
+        bpy.data.objects.remove(obj)
+        for leftover in leftovers:
+            bpy.data.objects.remove(leftover)
+    assert len(rig_module._cache) <= 1
