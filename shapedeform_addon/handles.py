@@ -108,7 +108,8 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     try:
         region = select_region(graph.points, rest_centre, settings.region_size * graph.size, taken)
     except ValueError as err:  # every point is taken
-        raise NoPointsLeft(str(err)) from None
+        raise NoPointsLeft(f"{err} (lower Handle Region, or bind again with a higher Graph Density for more "
+                           "points)") from None
     radius = settings.region_size * graph.size
     matrix = handle_matrix(rig.plane, point)
     offsets = region_offsets(frame_2d(rig.plane, matrix), rig.posed[region])
@@ -164,7 +165,7 @@ def add_all(obj, locations, kind="POSITION", on_rest=False, notes=None):
         if added:
             remove(obj, set(added))
         if isinstance(err, NoPointsLeft) and len(locations) > 1:  # say how many fit, and what to do
-            raise NoPointsLeft(f"{err}: {len(added)} of the {len(locations)} handles asked for fit (each holds "
+            raise NoPointsLeft(f"{len(added)} of the {len(locations)} handles asked for fit (each holds "
                                f"{MIN_REGION_POINTS} or more points of the shape); select fewer points. None was "
                                "added") from None
         raise

@@ -124,3 +124,17 @@ def test_more_selected_points_than_handles_fit_says_how_many_fit(addon):
         bpy.ops.shapedeform.add_handle()
     bpy.ops.object.mode_set(mode="OBJECT")
     assert len(obj.shapedeform.handles) == 0
+
+
+def test_a_handle_that_does_not_fit_says_what_to_change(addon):
+    """Handles until every point of the shape is taken: the next one is refused with what
+    gives room (it only said every point already belonged to a handle)."""
+    from test_rig_mesh import grid
+
+    obj = grid()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    bpy.context.view_layer.objects.active = obj
+    with pytest.raises(RuntimeError, match="lower Handle Region, or bind again with a higher Graph Density"):
+        for _ in range(100):
+            bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.0, 0.0, 0.0]))
+
