@@ -946,11 +946,11 @@ def test_handles_drive_the_shape_wherever_their_collection_is_hidden(addon, hide
 
 # -- a library override of a rigged character ------------------------------------------------------
 
-def character_collection(tmp_path):
-    """A grid alone in a collection "Character" of the scene: (collection, grid)."""
-    character = bpy.data.collections.new("Character")
+def character_collection(tmp_path, name="Character", grid_name="Grid"):
+    """A grid alone in a collection ``name`` of the scene: (collection, grid)."""
+    character = bpy.data.collections.new(name)
     bpy.context.scene.collection.children.link(character)
-    obj = make_mesh(tmp_path)
+    obj = grid(grid_name)
     for collection in obj.users_collection:
         collection.objects.unlink(obj)
     character.objects.link(obj)
@@ -969,6 +969,16 @@ def override_in_a_new_shot(library):
     obj = next(o for o in scene.objects if o.name == "Grid")
     assert obj.override_library is not None
     return obj
+
+
+def overridden_character(tmp_path):
+    """A rigged grid saved as a character file, linked into a new shot and overridden there:
+    (the library's path, the override of the grid)."""
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    return library, override_in_a_new_shot(library)
 
 
 def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon, tmp_path, quiet):
@@ -1076,11 +1086,7 @@ def test_a_character_bound_again_in_its_file_poses_again_in_the_shot(addon, tmp_
     """Unbind and bind again (another graph) in the character's file: the shot's override,
     reopened, poses with the new rig (its local copy of the old cage no longer fitted the new
     graph; the rig said the cage was edited and to unbind, which the shot refuses)."""
-    _, obj = character_collection(tmp_path)
-    Rigged(obj)
-    library = str(tmp_path / "character.blend")
-    bpy.ops.wm.save_as_mainfile(filepath=library)
-    obj = override_in_a_new_shot(library)
+    library, obj = overridden_character(tmp_path)
     handle = obj.shapedeform.handles[1].object
     handle.location.y += 0.4
     bpy.context.view_layer.update()
@@ -1224,11 +1230,7 @@ def test_an_override_saved_without_the_extension_keeps_its_rig(addon, tmp_path, 
     import addon_utils
     from extension_under_test import ADDON_MODULE
 
-    _, obj = character_collection(tmp_path)
-    Rigged(obj)
-    library = str(tmp_path / "character.blend")
-    bpy.ops.wm.save_as_mainfile(filepath=library)
-    obj = override_in_a_new_shot(library)
+    _, obj = overridden_character(tmp_path)
     handle = obj.shapedeform.handles[1].object
     handle.keyframe_insert("location", frame=1)
     handle.location.y += 0.5
@@ -1341,6 +1343,21 @@ def instanced_points(obj):
     raise AssertionError(f"no instance of '{obj.name}' is shown")
 
 
+def keyed_character(tmp_path, name="Character", grid_name="Grid"):
+    """A rigged grid alone in a collection, its second handle keyed 0.8 across from frame 1 to
+    10; left at frame 1. Returns (collection, grid, its points at frame 10)."""
+    character, obj = character_collection(tmp_path, name, grid_name)
+    rig = Rigged(obj)
+    scene = bpy.context.scene
+    rig.second.keyframe_insert("location", frame=1)
+    rig.second.location.y += 0.8
+    rig.second.keyframe_insert("location", frame=10)
+    scene.frame_set(10)
+    posed = evaluated(obj).copy()
+    scene.frame_set(1)
+    return character, obj, posed
+
+
 @pytest.mark.parametrize("only_instanced, nested", [(False, False), (True, False), (True, True)],
                          ids=["also in a scene", "only instanced", "instanced in an instanced set"])
 def test_a_collection_instanced_in_another_scene_follows_its_handles(addon, only_instanced, nested, tmp_path,
@@ -1350,15 +1367,8 @@ def test_a_collection_instanced_in_another_scene_follows_its_handles(addon, only
     in the scene were posed: the instance stayed at rest, 0.8 from its pose; and handles in no
     scene counted as deleted), and when the instance is itself in an instanced set (only one
     level was followed: at rest again)."""
-    character, obj = character_collection(tmp_path)
-    rig = Rigged(obj)
+    character, obj, posed = keyed_character(tmp_path)
     scene = bpy.context.scene
-    rig.second.keyframe_insert("location", frame=1)
-    rig.second.location.y += 0.8
-    rig.second.keyframe_insert("location", frame=10)
-    scene.frame_set(10)
-    posed = evaluated(obj).copy()
-    scene.frame_set(1)
 
     if only_instanced:
         scene.collection.children.unlink(character)
@@ -1396,15 +1406,8 @@ def test_a_collection_shown_by_geometry_nodes_in_another_scene_follows_its_handl
     """A shot showing a rigged character's collection through a Geometry Nodes Collection Info
     node poses it on every frame, and the command line bakes it (only rigs reached through the
     scene's objects and collection instances were posed: it showed frame 1's pose)."""
-    character, obj = character_collection(tmp_path)
-    rig = Rigged(obj)
+    character, obj, posed = keyed_character(tmp_path)
     scene = bpy.context.scene
-    rig.second.keyframe_insert("location", frame=1)
-    rig.second.location.y += 0.8
-    rig.second.keyframe_insert("location", frame=10)
-    scene.frame_set(10)
-    posed = evaluated(obj).copy()
-    scene.frame_set(1)
     rest = evaluated(obj).copy()
     if not in_a_scene:
         scene.collection.children.unlink(character)
@@ -1428,20 +1431,8 @@ def test_a_rig_shown_by_geometry_nodes_poses_beside_an_instanced_one(addon, tmp_
     held more objects than the scene walk counted, and A's instance made the counts equal)."""
     first_collection, first = character_collection(tmp_path)
     Rigged(first)
-    second_collection = bpy.data.collections.new("Character B")
-    bpy.context.scene.collection.children.link(second_collection)
-    second = grid("Grid B")
-    for collection in second.users_collection:
-        collection.objects.unlink(second)
-    second_collection.objects.link(second)
-    rig = Rigged(second)
+    second_collection, second, posed = keyed_character(tmp_path, "Character B", "Grid B")
     scene = bpy.context.scene
-    rig.second.keyframe_insert("location", frame=1)
-    rig.second.location.y += 0.8
-    rig.second.keyframe_insert("location", frame=10)
-    scene.frame_set(10)
-    posed = evaluated(second).copy()
-    scene.frame_set(1)
     scene.collection.children.unlink(second_collection)
     instance = bpy.data.objects.new("Character Instance", None)
     instance.instance_type, instance.instance_collection = "COLLECTION", first_collection
