@@ -32,6 +32,7 @@ def refusal(obj):
     if settings.rig is not None:
         return f"'{obj.name}' is part of the rig of '{settings.rig.name}'"
     try:
+        rig_format.require_posable(obj, "bind it")  # Blender drops edits of linked data on saving
         sources.kind_of(obj)
     except RigError as err:
         return str(err)

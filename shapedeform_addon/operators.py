@@ -60,7 +60,9 @@ class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return poll_reason(cls, "The active object is not bound" if cls._target(context) is None else "")
+        target = cls._target(context)
+        return poll_reason(cls, "The active object is not bound" if target is None
+                           else rig_format.local_refusal(target, "unbind it"))
 
     def execute(self, context):
         obj = self._target(context)
@@ -96,8 +98,9 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return poll_reason(cls, "Bind the object before adding handles" if rig_format.active_rig(context) is None
-                           else "")
+        owner = rig_format.active_rig(context)
+        return poll_reason(cls, "Bind the object before adding handles" if owner is None
+                           else rig_format.local_refusal(owner, "add handles"))
 
     def execute(self, context):
         active = context.active_object

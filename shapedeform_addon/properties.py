@@ -96,9 +96,13 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
     is_bound: BoolProperty(name="Bound", description="The object is rigged", default=False, options=NOT_KEYABLE)
     kind: StringProperty(name="Kind", description="What was rigged: MESH, IMAGE, CURVE or GREASEPENCIL",
                           options=NOT_KEYABLE)
-    handles: CollectionProperty(type=SHAPEDEFORM_PG_handle, name="Handles")
-    active_handle: IntProperty(name="Active Handle", default=0, min=0, options=NOT_KEYABLE, update=_handle_picked)
-    handle_collection: PointerProperty(type=bpy.types.Collection, name="Handle Collection")
+    handles: CollectionProperty(type=SHAPEDEFORM_PG_handle, name="Handles",
+                                description="The rig's handles and pins, in the order they were added")
+    active_handle: IntProperty(name="Active Handle", description="The handle the sidebar's list has picked",
+                               default=0, min=0, options=NOT_KEYABLE, update=_handle_picked)
+    handle_collection: PointerProperty(type=bpy.types.Collection, name="Handle Collection",
+                                       description="The collection holding the rig's handles, through which its "
+                                       "modifier has Blender evaluate them")
     original_data: PointerProperty(type=bpy.types.Mesh, name="Original Mesh",
                                    description="An image plane's quad, given back on unbind")
     rig: PointerProperty(type=bpy.types.Object, name="Rig",
@@ -167,7 +171,8 @@ _register_classes, _unregister_classes = bpy.utils.register_classes_factory(clas
 
 def register():
     _register_classes()
-    bpy.types.Object.shapedeform = PointerProperty(type=SHAPEDEFORM_PG_object)
+    bpy.types.Object.shapedeform = PointerProperty(type=SHAPEDEFORM_PG_object, name="Shape Deform",
+                                                   description="The object's Shape Deform rig and settings")
 
 
 def unregister():

@@ -75,7 +75,7 @@ class Rig:
                            f"decides where they go; give {' or '.join(map(_weight_label, err.terms))} a positive "
                            "weight") from None
         except ValueError as err:
-            raise RigError(f"'{obj.name}': {err}") from None
+            raise RigError(f"'{obj.name}': {_in_interface_terms(err)}") from None
         overlap = rig_format.pin_items(obj, "OVERLAP")
         self.overlap_pins = [empty for empty, _ in overlap]
         extents = _finite([_animated(empty, depsgraph).shapedeform.extent for empty, _ in overlap],
@@ -168,6 +168,18 @@ def signature(obj, depsgraph=None):
     return (cage, tuple(_handle_signature(item.object, depsgraph) if rig_format.present(item.object) else None
                         for item in s.handles),
             values.weight_laplacian, values.weight_mvc, values.weight_edge, values.preserve_area, values.prevent_flips)
+
+
+# The solver's parameters its messages name, as the sidebar labels them.
+_INTERFACE_NAMES = {"preserve_area": "Preserve Area"}
+
+
+def _in_interface_terms(error):
+    """A solver error's message with its parameters called what the sidebar calls them."""
+    message = str(error)
+    for parameter, label in _INTERFACE_NAMES.items():
+        message = message.replace(parameter, label)
+    return message
 
 
 def _handle_signature(empty, depsgraph):
@@ -288,7 +300,7 @@ def pose(obj, depsgraph=None, final=None):
         positions = rig.solve(frames, budgets.render_iterations if final else budgets.iterations)
         points = rig.cage_points(positions)
     except (ValueError, np.linalg.LinAlgError, FloatingPointError) as err:
-        raise RigError(f"'{owner.name}': {err}") from None
+        raise RigError(f"'{owner.name}': {_in_interface_terms(err)}") from None
     if not np.all(np.isfinite(points)):
         raise RigError(f"'{owner.name}': the solve gave non-finite positions; kept the last pose")
     rig.settled = rig.settled or final

@@ -370,6 +370,15 @@ def require_local(obj, action):
                    f"{action} in that file (here its handles move and key, and it bakes)")
 
 
+def local_refusal(obj, action):
+    """:func:`require_local`'s message, or "" (for an operator's poll)."""
+    try:
+        require_local(obj, action)
+    except RigError as err:
+        return str(err)
+    return ""
+
+
 def require_posable(obj, action):
     """Raise RigError when ``obj`` is linked from a library without an override: nothing in
     this file can move its handles or keep what is written into its cage (Blender drops edits

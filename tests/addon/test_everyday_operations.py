@@ -1003,6 +1003,7 @@ def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon,
     # and nothing changes (Unbind stopped half way, and Add Handle left an Empty behind).
     objects, count = set(bpy.data.objects), len(obj.shapedeform.handles)
     bpy.context.view_layer.objects.active = obj
+    assert not bpy.ops.shapedeform.add_handle.poll() and not bpy.ops.shapedeform.unbind.poll()  # greyed out
     for refused in (lambda: bpy.ops.shapedeform.add_handle(location=(0.5, -1.0, 0.25)),
                     lambda: bpy.ops.shapedeform.unbind()):
         with pytest.raises(RuntimeError, match="comes from the library 'character.blend'"):

@@ -239,3 +239,57 @@ def test_a_handle_added_off_the_shape_says_it_holds_the_nearest_part_at_a_distan
         bpy.context.view_layer.objects.active = plane
         assert bpy.ops.shapedeform.add_handle(location=place) == {"FINISHED"}
         assert "off it" not in capsys.readouterr().out
+
+
+def test_bind_refuses_an_object_linked_without_an_override(addon, tmp_path):
+    """A linked object (no library override): Bind was offered and made a cage, a collection
+    and a node group, and wrote into the linked object, all lost on saving; it is greyed out
+    and refused by name, as every other operator on such a rig is."""
+    from test_rig_mesh import grid
+
+    grid("Plain")
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "lib.blend"))
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    with bpy.data.libraries.load(str(tmp_path / "lib.blend"), link=True) as (_, linked):
+        linked.objects = ["Plain"]
+    bpy.context.scene.collection.objects.link(linked.objects[0])
+    plain = bpy.data.objects["Plain"]
+    bpy.context.view_layer.objects.active = plain
+    before = checks.snapshot()
+    assert not bpy.ops.shapedeform.bind.poll()
+    with pytest.raises(RuntimeError, match="comes from the library 'lib.blend' without a library override"):
+        bpy.ops.shapedeform.bind()
+    assert checks.snapshot() == before and not plain.shapedeform.is_bound
+
+
+def test_a_solver_refusal_names_the_setting_as_the_sidebar_does(addon):
+    """Preserve Area with every outline point held by a handle: the message named the solver's
+    parameter, preserve_area."""
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    plane = bpy.context.active_object
+    plane.shapedeform.graph_mode = "OWN"
+    plane.shapedeform.preserve_area = True
+    with pytest.raises(RuntimeError) as raised:
+        checks.bind_with_handles(plane, [-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0])
+    assert "preserve_area" not in str(raised.value) and "Preserve Area" in str(raised.value)
+
+
+def test_every_property_of_the_extension_has_a_name_and_a_description(addon):
+    """Python tooltips, the override view and driver paths show them (the rig's top-level
+    property was called "shapedeform", and three of its properties had no description)."""
+    pointer = bpy.types.Object.bl_rna.properties["shapedeform"]
+    missing = [] if pointer.description and pointer.name != "shapedeform" else ["Object.shapedeform"]
+    groups, seen = [pointer.fixed_type], set()
+    while groups:
+        group = groups.pop()
+        if group.identifier in seen:
+            continue
+        seen.add(group.identifier)
+        for prop in group.properties:
+            if prop.identifier == "rna_type":
+                continue
+            if not prop.description:
+                missing.append(f"{group.identifier}.{prop.identifier}")
+            if prop.type in {"POINTER", "COLLECTION"} and prop.fixed_type.identifier.startswith("SHAPEDEFORM"):
+                groups.append(prop.fixed_type)
+    assert not missing, missing
