@@ -27,6 +27,8 @@ def refusal(obj):
     if rig_format.is_follower(obj):
         owner = settings.cage.shapedeform.rig
         return f"'{obj.name}' follows the rig of '{owner.name}': unbind it first to give it its own"
+    if settings.is_bound and settings.cage is None and not rig_format.is_legacy(obj):
+        return f"'{obj.name}' is bound but lost its cage (deleted by hand): unbind it and bind it again"
     if settings.is_bound:
         return f"'{obj.name}' is already bound"
     if settings.rig is not None:

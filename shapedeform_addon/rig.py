@@ -50,7 +50,7 @@ class Rig:
                            "unbind it (its rest shape comes back) and bind it again")
         settings = obj.shapedeform
         if settings.cage is None or not len(settings.cage.data.vertices):
-            raise RigError(f"'{obj.name}' lost its cage; unbind it and bind it again")
+            raise RigError(f"'{obj.name}' is bound but lost its cage (deleted by hand): unbind it and bind it again")
         self.coarse_copies = _coarse_copies
         self._last_solve = None  # (iterations, targets' bytes, positions, converged)
         self.plane, self.graph = rig_format.read_graph(obj)

@@ -293,3 +293,14 @@ def test_every_property_of_the_extension_has_a_name_and_a_description(addon):
             if prop.type in {"POINTER", "COLLECTION"} and prop.fixed_type.identifier.startswith("SHAPEDEFORM"):
                 groups.append(prop.fixed_type)
     assert not missing, missing
+
+
+def test_a_rig_whose_cage_was_deleted_says_so_the_same_way(addon):
+    """The cage deleted by hand: Bind's tooltip said only "already bound", while Add Handle
+    said the cage was lost; both say what happened and what to do."""
+    obj, _, _ = rig_with_two_handles()
+    bpy.data.objects.remove(obj.shapedeform.cage)
+    bpy.context.view_layer.objects.active = obj
+    for operator in (bpy.ops.shapedeform.bind, bpy.ops.shapedeform.add_handle):
+        with pytest.raises(RuntimeError, match="lost its cage \\(deleted by hand\\): unbind it and bind it again"):
+            operator()
