@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .shapes import shape_geometry
+from .shapes import shape_geometry, signed_area
 
 __all__ = ["spacing_for_count", "simplify_rings", "outline_graph"]
 
@@ -66,9 +66,8 @@ def simplify_rings(rings, tolerance):
 
 def _width(ring):
     """Twice the area of a ring (k, 2) over its length."""
-    following = np.roll(ring, -1, axis=0)
-    area = 0.5 * abs(float(np.dot(ring[:, 0], following[:, 1]) - np.dot(following[:, 0], ring[:, 1])))
-    return 2.0 * area / max(float(np.linalg.norm(following - ring, axis=1).sum()), 1e-300)
+    length = float(np.linalg.norm(np.roll(ring, -1, axis=0) - ring, axis=1).sum())
+    return 2.0 * abs(signed_area(ring)) / max(length, 1e-300)
 
 
 def outline_graph(rings, count, detail=0.02):
