@@ -259,7 +259,6 @@ class Bake:
         for obj in self.objects:
             clear(obj)
             _write_keys(obj.shapedeform.cage, self.frames, self.captured[obj.name], self.times)
-            obj.shapedeform.cage.data.pop(rig_format.UNSETTLED, None)  # the bake shows what renders
             obj.shapedeform[BAKED] = [self.frames[0], self.frames[-1], self.step_size]
         self.captured.clear()
         self._restore_frame()  # show the baked result at the current frame

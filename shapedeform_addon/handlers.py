@@ -113,7 +113,7 @@ def on_depsgraph_update(scene, depsgraph):
         return
     moved = {}
     if any(isinstance(update.id, bpy.types.Collection) for update in depsgraph.updates):
-        for obj in bpy.data.objects:  # an object moved between collections, perhaps a handle
+        for obj in rig_format.bound_objects():  # an object moved between collections, perhaps a handle
             if rig_format.is_owner(obj):
                 handles.keep_in_collection(obj)
     for update in depsgraph.updates:

@@ -206,7 +206,7 @@ def get(obj, depsgraph=None):
 def _drop_removed():
     """Drop the rigs of owners no longer in the file (deleted without an undo or a reload
     since): a batch that binds, poses and deletes objects kept every one (8 MB each)."""
-    live = {obj.session_uid for obj in bpy.data.objects}
+    live = {obj.session_uid for obj in rig_format.bound_objects()}
     for uid in [uid for uid in _cache if uid not in live]:
         del _cache[uid]
     _deferred.intersection_update(live)

@@ -446,22 +446,19 @@ def _evaluated_owners(scene, depsgraph, known):
             return []
         depsgraph = view_layer.depsgraph
     found = []
-    try:
-        for obj in bound_objects():
-            if obj not in known and obj.shapedeform.is_bound and obj.evaluated_get(depsgraph).is_evaluated:
-                owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
-                if owner not in known and _posable_owner(owner):
-                    found.append(owner)
-    except ReferenceError:  # an object removed and another added since the list was made
-        forget_bound()
-        return _evaluated_owners(scene, depsgraph, known)
+    for obj in bound_objects():
+        if obj not in known and obj.shapedeform.is_bound and obj.evaluated_get(depsgraph).is_evaluated:
+            owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
+            if owner not in known and _posable_owner(owner):
+                found.append(owner)
     return found
 
 
 # The bound objects of the file, owners and followers: what :func:`owners` looks through for
-# rigs the scene shows by other ways than its objects, on every frame. Made again when the
-# file's number of objects changes (a bind makes a cage, a duplicate or an append adds objects,
-# a delete removes them); dropped when a file is opened, an undo step restored, or an object
+# rigs the scene shows by other ways than its objects, on every frame, and what handlers look
+# through for rigs instead of every object. Made again when the file's number of objects changes
+# (a bind makes a cage, a duplicate or an append adds objects, a delete removes them) or one of
+# its objects was removed; dropped when a file is opened, an undo step restored, or an object
 # bound or unbound (:func:`forget_bound`).
 _bound = {"count": -1, "objects": []}
 
@@ -469,10 +466,17 @@ _bound = {"count": -1, "objects": []}
 def bound_objects():
     """Every bound object of the file (owners and followers), a list kept between calls."""
     count = len(bpy.data.objects)
-    if count != _bound["count"]:
+    if count != _bound["count"] or not all(map(_exists, _bound["objects"])):  # one removed, another added
         _bound["objects"] = [obj for obj in bpy.data.objects if obj.shapedeform.is_bound]
         _bound["count"] = count
     return _bound["objects"]
+
+
+def _exists(obj):
+    try:
+        return obj.name is not None
+    except ReferenceError:
+        return False
 
 
 def forget_bound():

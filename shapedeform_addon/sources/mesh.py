@@ -133,7 +133,8 @@ def prepare(obj, settings):
             graph = solver.Graph(flat, mesh_edges, loops, tris)
         else:
             if pinched is None:
-                rings = with_area([flat[loop] for loop in loops]) or [flat[loop] for loop in loops]
+                rings = [flat[loop] for loop in loops]
+                rings = with_area(rings) or rings  # a flat face's loop is left out, unless all are
             else:
                 faces = shapely.union_all(shapely.polygons(flat[tris]))
                 rings = [ring for island in geometry_rings(faces) for ring in island]

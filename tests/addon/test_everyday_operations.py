@@ -694,8 +694,8 @@ def test_undo_back_to_a_viewport_pose_refines_it(addon, monkeypatch, next_step, 
 
 def test_a_bake_leaves_no_unsettled_mark(addon, monkeypatch, quiet):
     """A Viewport pose that stopped short, then a bake: the bake shows what renders, so after
-    an undo or a reopening nothing is listed for refining (the mark stayed on the baked cage,
-    and every undo scheduled a refine that had nothing to do)."""
+    an undo or a reopening nothing is listed for refining (the bake poses every frame with the
+    Render budget, which clears the mark before the keys go on)."""
     shapedeform = addon.shapedeform_addon
     obj = grid()
     _, right = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
