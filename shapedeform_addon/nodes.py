@@ -49,11 +49,10 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 12
+VERSION = 13
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
-SCAFFOLD = "sd_unsorted"  # only inside the group: layers that carry materials through the sort
 # The name of a boolean attribute naming what the rig deforms (grease-pencil layers chosen at
 # bind time, on the LAYER domain), given to each modifier (``RIGGED_INPUT``): objects sharing
 # their data each have their own; everything is deformed when it is missing or the name empty.
@@ -221,10 +220,10 @@ def _interface(group):
     refine.default_value, refine.min_value, refine.max_value = 0, 0, 6
     order = group.interface.new_socket(ORDER_INPUT, in_out="INPUT", socket_type="NodeSocketBool")
     order.description = ("Grease pencil: in each layer, draw the strokes lying on a part the pose folds over "
-                         "another after the others, which keep their order (rebuilds the layers: their blend "
-                         "modes, masks, view-layer filters, groups and parents are not kept, Use Lights is turned "
-                         "off, and layers keep only the current frame's drawing, keyed at frame 0, so onion skins "
-                         "and drawings before frame 0 vanish). Bind turns it on where the drawing uses none of these")
+                         "another after the others, which keep their order. While a stroke is moved, each layer "
+                         "draws as layers of its name and settings, with no layer groups and only the current "
+                         "frame's drawing, keyed at frame 0 (onion skins and drawings before frame 0 vanish). "
+                         "Bind turns it on where the drawing uses none of these")
     order.default_value = False
     handles = group.interface.new_socket(HANDLES_INPUT, in_out="INPUT", socket_type="NodeSocketCollection")
     handles.description = ("The rig's handles: named here so Blender evaluates them wherever this object is "
@@ -449,8 +448,8 @@ def _stroke_order(b, cage, moved, enabled, selection):
     highest: the point lies over a fold when it is higher than the lowest, under one when it
     is lower than the highest. A stroke most of whose points lie over a fold sorts after the
     others, one most of whose points lie under a fold before them (an arm an overlap pin puts
-    behind a body drawn as one large stroke), each group keeping its order (Sort Elements is
-    stable). A stroke the fold laid partly over itself (a head's fill with its ears) cannot be
+    behind a body drawn as one large stroke), each group keeping its order
+    (:func:`_sorted_drawings`). A stroke the fold laid partly over itself (a head's fill with its ears) cannot be
     split, and stays where most of it lies.
     """
     position, normal = cage.position, cage.normal
@@ -519,26 +518,43 @@ def _stroke_share(b, point_test):
 
 
 def _sorted_drawings(b, drawings, sort_weight):
-    """``drawings`` with each layer's strokes sorted by ``sort_weight``, materials kept.
+    """``drawings`` with each layer's strokes weighed -1 (under a fold) drawn first and +1
+    (over one) last, the others between in their order; unchanged while no stroke is either.
 
-    Sort Elements drops the curves' material list when it reorders (Blender 4.5-5.2), leaving
-    the material indices pointing at nothing: the strokes would render in the default material.
-    Joined with the original's layers (emptied and marked), the drawing gets the original's
-    material list, which the indices point into; the marked layers then go.
+    Sort Elements does not sort grease-pencil strokes (Blender 4.5-5.2), and passing them
+    through curves and back makes new layers without the originals' lighting, blend modes,
+    view-layer filters or parents. Delete Geometry and Join keep a layer's settings, so each
+    layer is drawn as three layers of its name and settings (its strokes under a fold, the
+    rest, those over one), a repeat over the layers keeping each layer's three together in the
+    layer order. Joined layers lose their groups and keep the current drawing alone (keyed at
+    frame 0), which is why this waits for a stroke to move.
     """
-    as_curves = b.node("GeometryNodeGreasePencilToCurves", {"Grease Pencil": drawings,
-                                                             "Layers as Instances": True}).outputs[0]
-    in_order = b.node("GeometryNodeSortElements", {"Geometry": as_curves, "Sort Weight": sort_weight},
-                      domain="CURVE").outputs[0]
-    sorted_drawings = b.node("GeometryNodeCurvesToGreasePencil",
-                             {"Curves": in_order, "Instances as Layers": True}).outputs[0]
-    emptied = b.node("GeometryNodeDeleteGeometry", {"Geometry": drawings}, domain="CURVE")
-    marked = b.node("GeometryNodeStoreNamedAttribute", {"Geometry": emptied.outputs[0], "Name": SCAFFOLD,
-                                                        "Value": True}, domain="LAYER", data_type="BOOLEAN")
-    with_materials = b.node("GeometryNodeJoinGeometry")
-    b.group.links.new(sorted_drawings, with_materials.inputs[0])
-    b.group.links.new(marked.outputs[0], with_materials.inputs[0])
-    scaffold = b.node("GeometryNodeInputNamedAttribute", {"Name": SCAFFOLD}, data_type="BOOLEAN").outputs["Attribute"]
-    kept = b.node("GeometryNodeDeleteGeometry", {"Geometry": with_materials.outputs[0], "Selection": scaffold},
-                  domain="LAYER")
-    return b.node("GeometryNodeRemoveAttribute", {"Geometry": kept.outputs[0], "Name": SCAFFOLD}).outputs[0]
+    count = b.node("GeometryNodeAttributeDomainSize", {"Geometry": drawings},
+                   component="GREASEPENCIL").outputs["Layer Count"]
+    start = b.node("GeometryNodeRepeatInput", {"Iterations": count})
+    end = b.node("GeometryNodeRepeatOutput")
+    start.pair_with_output(end)
+    layer = b.node("GeometryNodeInputIndex").outputs[0]
+    other_layers = b.node("FunctionNodeCompare", {"A": layer, "B": start.outputs["Iteration"]},
+                          data_type="INT", operation="NOT_EQUAL").outputs[0]
+    # Join puts the input linked last first: link the last layer to draw first.
+    layered = b.node("GeometryNodeJoinGeometry")
+    for low, high in ((0.5, 2.0), (-0.5, 0.5), (-2.0, -0.5)):
+        outside = b.node("FunctionNodeCompare", {"A": sort_weight, "B": (low + high) / 2, "Epsilon": (high - low) / 2},
+                         data_type="FLOAT", operation="NOT_EQUAL").outputs[0]
+        part = b.node("GeometryNodeDeleteGeometry", {"Geometry": drawings, "Selection": outside}, domain="CURVE")
+        piece = b.node("GeometryNodeDeleteGeometry", {"Geometry": part.outputs[0], "Selection": other_layers},
+                       domain="LAYER")
+        b.group.links.new(piece.outputs[0], layered.inputs[0])
+    b.group.links.new(start.outputs["Geometry"], layered.inputs[0])
+    b.group.links.new(layered.outputs[0], end.inputs["Geometry"])
+    level = b.node("FunctionNodeCompare", {"A": sort_weight, "B": 0.0, "Epsilon": 0.5},
+                   data_type="FLOAT", operation="EQUAL").outputs[0]
+    moving = b.node("GeometryNodeDeleteGeometry", {"Geometry": drawings, "Selection": level}, domain="CURVE")
+    as_curves = b.node("GeometryNodeGreasePencilToCurves", {"Grease Pencil": moving.outputs[0],
+                                                             "Layers as Instances": False}).outputs[0]
+    strokes = b.node("GeometryNodeAttributeDomainSize", {"Geometry": as_curves}, component="CURVE")
+    any_moving = b.node("FunctionNodeCompare", {"A": strokes.outputs["Spline Count"], "B": 0},
+                        data_type="INT", operation="GREATER_THAN").outputs[0]
+    return b.node("GeometryNodeSwitch", {"Switch": any_moving, "False": drawings, "True": end.outputs["Geometry"]},
+                  input_type="GEOMETRY").outputs[0]

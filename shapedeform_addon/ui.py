@@ -157,7 +157,7 @@ def _draw_modifier_inputs(layout, obj):
         losses = grease_pencil.stroke_order_losses(obj)
         if losses:
             on = compat.modifier_input(modifier, ids[name])
-            layout.label(text=("Drops " if on else "Would drop ") + "; ".join(losses),
+            layout.label(text=("Drops " if on else "Would drop ") + "; ".join(losses) + " while a pose folds",
                          icon="ERROR" if on else "INFO")
 
 

@@ -77,20 +77,17 @@ def _values(drawing, name, count, dtype, default):
 
 
 def stroke_order_losses(obj):
-    """What the modifier's Stroke Order would drop from ``obj``'s layers, as phrases for a
-    message (empty when nothing shows).
+    """What the modifier's Stroke Order would drop from ``obj``'s layers while the pose folds
+    the shape over itself, as phrases for a message (empty when nothing shows).
 
-    Stroke Order passes the drawings through curves and back (Sort Elements does not sort
-    grease-pencil strokes), which makes new layers: opacity, tint, transform, pass index and
-    radius offset are carried over, their lighting, blend modes, masks, view-layer filters and
-    parents are not (a parented layer would jump to where it is drawn unparented), nor their
-    groups (a later modifier filtered by a layer group finds none), and each keeps only the
-    current frame's drawing, so onion skins of its other keyframes vanish from the viewport.
-    Lighting matters only where the object uses lights too (the 2D Animation template's objects
-    do not). The rebuilt drawings all start at frame 0, so a Build modifier after the rig's,
-    which times strokes from their keyframe, draws nothing, a Noise modifier's Random re-seeds on
-    other frames, and a drawing keyed before frame 0
-    vanishes there.
+    While a stroke lies over or under a fold, Stroke Order draws each layer as up to three
+    layers with its name and settings (lighting, blend mode, opacity, tint, transform, parent,
+    view-layer filter and pass index are kept): Sort Elements does not sort grease-pencil
+    strokes. Those layers have no groups (a later modifier filtered by a layer group finds
+    none), and hold the current frame's drawing alone, keyed at frame 0: onion skins of other
+    keyframes vanish, a Build modifier after the rig's, which times strokes from their keyframe,
+    draws nothing, a Noise modifier's Random re-seeds, and a drawing keyed before frame 0
+    vanishes. A mask names its layers, and would find one of the three.
     """
     layers = list(obj.data.layers)
     stack, ours = list(obj.modifiers), modifiers_of(obj)
@@ -99,12 +96,8 @@ def stroke_order_losses(obj):
     later = [m for m in stack[stack.index(ours[0]) + 1:]
              if m.type == "GREASE_PENCIL_BUILD" or (m.type == "GREASE_PENCIL_NOISE" and m.use_random)] if ours else []
     checks = (
-        ("lights on", [layer for layer in layers if layer.use_lights] if obj.use_grease_pencil_lights else []),
         ("onion skins of", [layer for layer in layers if layer.use_onion_skinning and len(layer.frames) > 1]),
-        ("blend modes of", [layer for layer in layers if layer.blend_mode != "REGULAR"]),
         ("masks of", [layer for layer in layers if layer.use_masks and len(layer.mask_layers)]),
-        ("view-layer filters of", [layer for layer in layers if layer.viewlayer_render]),
-        ("parents of", [layer for layer in layers if layer.parent is not None]),
         ("layer groups of", [layer for layer in layers if layer.parent_group is not None]),
         ("drawings before frame 0 of", [layer for layer in layers if any(f.frame_number < 0 for f in layer.frames)]),
         ("the keyframe timing read by", later),

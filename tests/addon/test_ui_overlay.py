@@ -140,13 +140,16 @@ def test_panel_shows_the_modifier_option_for_the_kind_of_object(addon):
         modifier = shapedeform.rig_format.modifiers_of(obj)[0]
         identifier = shapedeform.nodes.input_identifiers(modifier.node_group)[name]
         assert shapedeform.compat.modifier_input_property(modifier, identifier)[1] in drawn(bpy.context)
-    # The monkey's layers are lit: bind left Stroke Order off, and the panel says why.
+    # A second keyframe shown as an onion skin: Stroke Order would drop it while a pose folds.
     bpy.context.view_layer.objects.active = monkey
-    assert "Would drop lights on 'Fills', 'Lines'" in drawn(bpy.context, labels=True)
+    lines = monkey.data.layers["Lines"]
+    lines.frames.copy(lines.frames[0].frame_number, 5)
     modifier = shapedeform.rig_format.modifiers_of(monkey)[0]
-    shapedeform.compat.set_modifier_input(
-        modifier, shapedeform.nodes.input_identifiers(modifier.node_group)["Stroke Order"], True)
-    assert "Drops lights on 'Fills', 'Lines'" in drawn(bpy.context, labels=True)
+    order = shapedeform.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
+    assert shapedeform.compat.modifier_input(modifier, order) is True  # bound before the keyframe
+    assert "Drops onion skins of 'Lines' while a pose folds" in drawn(bpy.context, labels=True)
+    shapedeform.compat.set_modifier_input(modifier, order, False)
+    assert "Would drop onion skins of 'Lines' while a pose folds" in drawn(bpy.context, labels=True)
 
 
 def test_a_handle_left_by_a_deleted_object_offers_unbind_and_says_why(addon):
@@ -175,7 +178,6 @@ def test_a_build_modifier_after_the_rig_is_named_among_what_stroke_order_drops(a
     grease_pencil = addon.shapedeform_addon.sources.grease_pencil
     bpy.ops.object.grease_pencil_add(type="MONKEY")
     monkey = bpy.context.active_object
-    monkey.use_grease_pencil_lights = False
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert grease_pencil.stroke_order_losses(monkey) == []
     build = monkey.modifiers.new("Build", "GREASE_PENCIL_BUILD")
