@@ -220,6 +220,7 @@ def _add_pin(obj, rig, point, kind):
     item.object = empty
     item[rig_format.PIN_POINT] = point
     set_active(obj.shapedeform, len(obj.shapedeform.handles) - 1)
+    rig_format.keep_pins_evaluated(obj)
     rigs.invalidate(obj)
     return empty
 
@@ -255,6 +256,7 @@ def adopt_duplicated(obj):
     settings.cage = cage
     set_active(settings, min(settings.active_handle, len(settings.handles) - 1))
     rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage, nodes.HANDLES_INPUT: home})
+    rig_format.keep_pins_evaluated(obj)
     return True
 
 
@@ -394,6 +396,7 @@ def release_follower(obj):
     if is_own_cage(obj, settings.cage):  # its own (follow), sharing the rig's mesh
         bpy.data.objects.remove(settings.cage)
     settings.handles.clear()
+    rig_format.keep_pins_evaluated(obj)
     settings.handle_collection = None
     settings.original_data = None
     rig_format.forget(obj)
@@ -437,6 +440,7 @@ def remove(obj, empties):
                     bpy.data.objects.remove(empty)
                 removed += 1
     set_active(settings, min(settings.active_handle, max(len(settings.handles) - 1, 0)))
+    rig_format.keep_pins_evaluated(obj)
     rigs.invalidate(obj)
     return removed
 

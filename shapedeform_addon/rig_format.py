@@ -57,6 +57,9 @@ HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
 CAGE_STAMP = "shapedeform_cage"  # on a cage's mesh: the owner's cage object it belongs to
 UNSETTLED = "shapedeform_unsettled"  # on a cage's mesh: its pose is a Viewport solve that stopped short
+# On the owner: a driver's sum of its pins' keyable amounts ("_": the interface does not list it).
+PIN_AMOUNTS = "_shapedeform_pin_amounts"
+_PIN_SETTINGS = {"OVERLAP": ("in_front", "extent"), "STARCH": ("stiffness", "extent")}
 # Kept by older versions, which wrote poses into the object's own data: read only to give the
 # rest shape back (``restore_legacy`` of each source), dropped on unbind.
 LEGACY_GP_LAYERS, LEGACY_GP_FRAMES = "gp_layers", "gp_frames"
@@ -136,6 +139,46 @@ def pin_items(obj, kind):
     """The owner's live pins of ``kind`` ('OVERLAP', 'STARCH'): [(Empty, graph point it is bound to)]."""
     return [(item.object, int(item[PIN_POINT])) for item in obj.shapedeform.handles
             if present(item.object) and PIN_POINT in item and item.object.shapedeform.pin_kind == kind]
+
+
+def keep_pins_evaluated(obj):
+    """Have Blender evaluate the keyable amounts of ``obj``'s pins wherever ``obj`` is evaluated;
+    True when something changed.
+
+    The modifier's Handles input makes the pins' transforms dependencies of the object, not
+    their other settings: with the handle collection disabled in viewports or in renders, a
+    keyed In Front or Stiffness stayed at the value it last had (a pose 0.63 off on a bar 8
+    long; 6.4% of a rendered frame's pixels). A driver on the owner reading each pin's amounts
+    makes them dependencies too. Its value is never read, and it changes nothing else (no
+    evaluation of the object's geometry). A library's rig keeps the driver its file made.
+    """
+    if obj.library is not None or obj.override_library is not None:
+        return False
+    wanted = [(item.object, f"shapedeform.{name}") for item in obj.shapedeform.handles if present(item.object)
+              for name in _PIN_SETTINGS.get(item.object.shapedeform.pin_kind, ())]
+    path = f'["{PIN_AMOUNTS}"]'
+    animation = obj.animation_data
+    fcurve = animation.drivers.find(path) if animation is not None else None
+    if fcurve is not None:
+        if [(v.targets[0].id, v.targets[0].data_path) for v in fcurve.driver.variables] == wanted:
+            return False
+        animation.drivers.remove(fcurve)
+    elif not wanted:
+        return False
+    if not wanted:
+        obj.pop(PIN_AMOUNTS, None)
+        if animation.action is None and not animation.drivers and not animation.nla_tracks:
+            obj.animation_data_clear()
+        return True
+    obj[PIN_AMOUNTS] = 0.0
+    driver = obj.driver_add(path).driver
+    driver.type = "SUM"
+    for i, (pin, data_path) in enumerate(wanted):
+        variable = driver.variables.new()
+        variable.name = f"amount_{i}"
+        variable.targets[0].id = pin
+        variable.targets[0].data_path = data_path
+    return True
 
 
 # -- the cage and the modifier ----------------------------------------------------------------

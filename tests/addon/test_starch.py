@@ -104,6 +104,72 @@ def test_render_animation_renders_each_frames_keyed_stiffness(addon, tmp_path):
     assert np.mean(np.abs(animated - still[2]).max(axis=2) > 0.1) < 1e-3
 
 
+def keyed_pins(obj, end):
+    """An overlap pin on the curled bar's end keyed from -1 to 1 and a starch pin in its middle
+    keyed from 0 to 80, frames 1 to 5; returns each frame's pose {1: (n, 3), 5: (n, 3)}."""
+    curl(end)
+    keys = {}
+    for location, kind, name, values in (((3.5, 0.0, 0.0), "OVERLAP", "in_front", (-1.0, 1.0)),
+                                         ((0.0, 0.0, 0.0), "STARCH", "stiffness", (0.0, 80.0))):
+        bpy.context.view_layer.objects.active = obj
+        assert bpy.ops.shapedeform.add_handle(location=location, kind=kind) == {"FINISHED"}
+        pin = obj.shapedeform.handles[-1].object
+        for frame, value in zip((1, 5), values):
+            setattr(pin.shapedeform, name, value)
+            pin.keyframe_insert(f"shapedeform.{name}", frame=frame)
+    scene = bpy.context.scene
+    for frame in (1, 5):
+        scene.frame_set(frame)
+        keys[frame] = checks.evaluated_mesh_points(obj).copy()
+    assert np.abs(keys[5] - keys[1]).max() > 0.1  # the amounts show
+    return keys
+
+
+@pytest.mark.parametrize("hidden", ["collection disabled in viewports", "collection hidden", "pins disabled"])
+def test_keyed_pin_amounts_play_and_bake_with_the_handles_hidden(addon, hidden):
+    """Hiding or disabling the rig's handles changes no frame's pose, live or baked (with the
+    collection disabled in viewports the pins' keyed amounts stayed where they last were: 0.63
+    off on this bar 8 long); Unbind takes away what keeps them evaluated."""
+    obj, end = bar()
+    keys = keyed_pins(obj, end)
+    collection = obj.shapedeform.handle_collection
+    if hidden == "collection disabled in viewports":
+        collection.hide_viewport = True
+    elif hidden == "collection hidden":
+        bpy.context.view_layer.layer_collection.children[collection.name].hide_viewport = True
+    else:
+        for item in obj.shapedeform.handles[2:]:
+            item.object.hide_viewport = True
+    scene = bpy.context.scene
+    for frame in (5, 1, 5):
+        scene.frame_set(frame)
+        np.testing.assert_allclose(checks.evaluated_mesh_points(obj), keys[frame], atol=1e-5, err_msg=str(frame))
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=5) == {"FINISHED"}
+    for frame in (1, 5):
+        scene.frame_set(frame)
+        np.testing.assert_allclose(checks.evaluated_mesh_points(obj), keys[frame], atol=1e-5, err_msg=f"baked {frame}")
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert obj.animation_data is None and addon.shapedeform_addon.rig_format.PIN_AMOUNTS not in obj
+
+
+def test_keyed_pin_amounts_render_with_the_handles_disabled_in_renders(addon, tmp_path):
+    """Render Animation with the handle collection disabled in renders renders each frame's
+    keyed amounts (it rendered frame 5 with frame 1's: 6.4% of the pixels)."""
+    import renders
+
+    obj, end = bar()
+    keyed_pins(obj, end)
+    renders.camera_over((0.0, 1.0), 9.0)
+    scene = bpy.context.scene
+    scene.frame_set(5)
+    shown = renders.render(tmp_path / "shown.png", size=96)
+    scene.frame_set(1)
+    obj.shapedeform.handle_collection.hide_render = True
+    animated = renders.animation_frame(5, tmp_path, "hidden", size=96)
+    assert np.mean(np.abs(animated - shown).max(axis=2) > 0.1) < 1e-3
+
+
 def test_starch_pins_show_in_the_sidebar_and_overlay(addon):
     from test_ui_overlay import drawn
 
