@@ -207,7 +207,7 @@ def sync_scene():
         handles.settle_duplicate(obj)
         if rig_format.is_owner(obj):
             handles.keep_in_collection(obj)
-            rig_format.keep_pins_evaluated(obj)  # a file from before the driver
+            rig_format.keep_handles_evaluated(obj)  # a file from before the driver
     scene = bpy.context.scene
     if scene is not None:
         depsgraph = bpy.context.evaluated_depsgraph_get()

@@ -125,6 +125,7 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     item[rig_format.HANDLE_INDICES] = region.astype(np.int32)
     item[rig_format.HANDLE_OFFSETS] = offsets.ravel()
     set_active(settings, len(settings.handles) - 1)
+    rig_format.keep_handles_evaluated(obj)
     rigs.invalidate(obj)
     return empty
 
@@ -220,7 +221,7 @@ def _add_pin(obj, rig, point, kind):
     item.object = empty
     item[rig_format.PIN_POINT] = point
     set_active(obj.shapedeform, len(obj.shapedeform.handles) - 1)
-    rig_format.keep_pins_evaluated(obj)
+    rig_format.keep_handles_evaluated(obj)
     rigs.invalidate(obj)
     return empty
 
@@ -255,8 +256,8 @@ def adopt_duplicated(obj):
             settings.handles.remove(i)
     settings.cage = cage
     set_active(settings, min(settings.active_handle, len(settings.handles) - 1))
-    rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage, nodes.HANDLES_INPUT: home})
-    rig_format.keep_pins_evaluated(obj)
+    rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage})
+    rig_format.keep_handles_evaluated(obj)
     return True
 
 
@@ -300,8 +301,8 @@ def follow(obj):
         # In no collection: Blender evaluates it for the modifier that reads it, and when the
         # duplicate is deleted nothing uses it any more (so it is not saved).
         obj.shapedeform.cage = cage
-    return rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage,
-                                         nodes.HANDLES_INPUT: followed.shapedeform.handle_collection})
+    changed = rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage})
+    return rig_format.keep_handles_evaluated(obj) or changed
 
 
 def is_own_cage(obj, cage):
@@ -373,10 +374,9 @@ def keep_in_collection(obj):
     """Link back into ``obj``'s handle collection the handles and pins moved out of it (M, Move
     to Collection); True when any was.
 
-    The modifier reads the handles through that collection, which is what has Blender evaluate
-    them wherever the object is: a handle only in a collection excluded or disabled in renders
-    would be left unevaluated (the viewport froze it; Render Animation posed every frame with
-    the frame the render started at). A handle in no collection was deleted, and stays so.
+    The rig's collection then still holds all of its handles, to show, hide or select together
+    (Blender evaluates them wherever the object is whatever their collections:
+    ``rig_format.keep_handles_evaluated``). A handle in no collection was deleted, and stays so.
     """
     settings = obj.shapedeform
     home = settings.handle_collection
@@ -396,7 +396,7 @@ def release_follower(obj):
     if is_own_cage(obj, settings.cage):  # its own (follow), sharing the rig's mesh
         bpy.data.objects.remove(settings.cage)
     settings.handles.clear()
-    rig_format.keep_pins_evaluated(obj)
+    rig_format.keep_handles_evaluated(obj)
     settings.handle_collection = None
     settings.original_data = None
     rig_format.forget(obj)
@@ -440,7 +440,7 @@ def remove(obj, empties):
                     bpy.data.objects.remove(empty)
                 removed += 1
     set_active(settings, min(settings.active_handle, max(len(settings.handles) - 1, 0)))
-    rig_format.keep_pins_evaluated(obj)
+    rig_format.keep_handles_evaluated(obj)
     rigs.invalidate(obj)
     return removed
 

@@ -49,7 +49,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 13
+VERSION = 14
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -63,11 +63,7 @@ CAGE_INPUT, RIGGED_INPUT = "Cage", "Rigged Layers"
 # Object; only a linked library's group can still have it (``handles.follow``).
 LEGACY_OWNER_INPUT = "Owner"
 REFINE_INPUT, ORDER_INPUT = "Refine", "Stroke Order"
-# The rig's handle collection. Nothing in the group reads it: a modifier's ID inputs are its
-# object's dependencies, so Blender evaluates the handles' animation wherever the object is
-# evaluated, even where their collection is hidden, disabled in renders or excluded.
-HANDLES_INPUT = "Handles"
-KEPT_INPUTS = (CAGE_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT, HANDLES_INPUT)
+KEPT_INPUTS = (CAGE_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT)
 
 
 def node_group():
@@ -97,16 +93,12 @@ def _rebuild(group):
     _build(group)
     group[VERSION_KEY] = VERSION
     new = input_identifiers(group)
-    for obj, modifier, values in kept:
+    for _obj, modifier, values in kept:
         for name, value in values.items():
             if name in new and value is not None:
                 compat.set_modifier_input(modifier, new[name], value)
         if RIGGED_INPUT not in old:
             compat.set_modifier_input(modifier, new[RIGGED_INPUT], RIGGED)
-        cage = values.get(CAGE_INPUT)
-        owner = cage.shapedeform.rig if cage is not None and cage.shapedeform.rig is not None else obj
-        if HANDLES_INPUT not in old and owner.shapedeform.handle_collection is not None:
-            compat.set_modifier_input(modifier, new[HANDLES_INPUT], owner.shapedeform.handle_collection)
 
 
 def upgrade():
@@ -225,9 +217,6 @@ def _interface(group):
                          "frame's drawing, keyed at frame 0 (onion skins and drawings before frame 0 vanish). "
                          "Bind turns it on where the drawing uses none of these")
     order.default_value = False
-    handles = group.interface.new_socket(HANDLES_INPUT, in_out="INPUT", socket_type="NodeSocketCollection")
-    handles.description = ("The rig's handles: named here so Blender evaluates them wherever this object is "
-                           "evaluated, even where their collection is hidden")
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
 
 

@@ -57,8 +57,9 @@ HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
 CAGE_STAMP = "shapedeform_cage"  # on a cage's mesh: the owner's cage object it belongs to
 UNSETTLED = "shapedeform_unsettled"  # on a cage's mesh: its pose is a Viewport solve that stopped short
-# On the owner: a driver's sum of its pins' keyable amounts ("_": the interface does not list it).
-PIN_AMOUNTS = "_shapedeform_pin_amounts"
+# On a rig's owner and followers: a driver reading its handles' transforms and its pins'
+# keyable amounts ("_": the interface does not list it), :func:`keep_handles_evaluated`.
+HANDLES_WATCHED = "_shapedeform_handles"
 _PIN_SETTINGS = {"OVERLAP": ("in_front", "extent"), "STARCH": ("stiffness", "extent")}
 # Kept by older versions, which wrote poses into the object's own data: read only to give the
 # rest shape back (``restore_legacy`` of each source), dropped on unbind.
@@ -141,43 +142,57 @@ def pin_items(obj, kind):
             if present(item.object) and PIN_POINT in item and item.object.shapedeform.pin_kind == kind]
 
 
-def keep_pins_evaluated(obj):
-    """Have Blender evaluate the keyable amounts of ``obj``'s pins wherever ``obj`` is evaluated;
+def keep_handles_evaluated(obj):
+    """Have Blender evaluate the handles and pins of ``obj``'s rig (``obj`` its owner or a
+    follower) wherever ``obj`` is evaluated: their transforms and the pins' keyable amounts;
     True when something changed.
 
-    The modifier's Handles input makes the pins' transforms dependencies of the object, not
-    their other settings: with the handle collection disabled in viewports or in renders, a
-    keyed In Front or Stiffness stayed at the value it last had (a pose 0.63 off on a bar 8
-    long; 6.4% of a rendered frame's pixels). A driver on the owner reading each pin's amounts
-    makes them dependencies too. Its value is never read, and it changes nothing else (no
-    evaluation of the object's geometry). A library's rig keeps the driver its file made.
+    A driver on the object reads each handle's transform and each pin's amounts, which makes
+    them the object's dependencies: Blender then evaluates their animation with the object's,
+    even where their collection is hidden, disabled in viewports or renders, or excluded (a pin's
+    keyed In Front stayed at its last value there: a pose 0.6 off). Its value is never read,
+    and the object's geometry does not depend on it, so a handle's move evaluates the object
+    once, after the rig wrote the new pose (the modifier's Handles input, which did this before,
+    evaluated it before that as well: 45 ms per move of a 200,000-vertex plane against 26).
+    A library's rig keeps what its file made.
     """
     if obj.library is not None or obj.override_library is not None:
         return False
-    wanted = [(item.object, f"shapedeform.{name}") for item in obj.shapedeform.handles if present(item.object)
-              for name in _PIN_SETTINGS.get(item.object.shapedeform.pin_kind, ())]
-    path = f'["{PIN_AMOUNTS}"]'
+    owner = owner_of(obj)
+    wanted = []
+    for item in (owner.shapedeform.handles if owner is not None else ()):
+        handle = item.object
+        if present(handle) and handle.shapedeform.pin_kind == "POSITION":
+            wanted.append((handle, "TRANSFORMS", ""))
+        elif present(handle):
+            wanted.extend((handle, "SINGLE_PROP", f"shapedeform.{name}")
+                          for name in _PIN_SETTINGS[handle.shapedeform.pin_kind])
+    path = f'["{HANDLES_WATCHED}"]'
     animation = obj.animation_data
     fcurve = animation.drivers.find(path) if animation is not None else None
     if fcurve is not None:
-        if [(v.targets[0].id, v.targets[0].data_path) for v in fcurve.driver.variables] == wanted:
+        if [(v.targets[0].id, v.type, v.targets[0].data_path) for v in fcurve.driver.variables] == wanted:
             return False
         animation.drivers.remove(fcurve)
     elif not wanted:
         return False
     if not wanted:
-        obj.pop(PIN_AMOUNTS, None)
+        obj.pop(HANDLES_WATCHED, None)
         if animation.action is None and not animation.drivers and not animation.nla_tracks:
             obj.animation_data_clear()
         return True
-    obj[PIN_AMOUNTS] = 0.0
+    obj[HANDLES_WATCHED] = 0.0
     driver = obj.driver_add(path).driver
     driver.type = "SUM"
-    for i, (pin, data_path) in enumerate(wanted):
+    for i, (handle, kind, data_path) in enumerate(wanted):
         variable = driver.variables.new()
-        variable.name = f"amount_{i}"
-        variable.targets[0].id = pin
-        variable.targets[0].data_path = data_path
+        variable.name, variable.type = f"handle_{i}", kind
+        target = variable.targets[0]
+        target.id = handle
+        if kind == "TRANSFORMS":
+            target.transform_type, target.transform_space = "LOC_X", "WORLD_SPACE"
+        else:
+            target.data_path = data_path
     return True
 
 
@@ -307,7 +322,7 @@ def add_modifier(obj, cage, inputs=None):
     modifier.node_group = group
     modifier.show_in_editmode = True
     ids = nodes.input_identifiers(group)
-    values = {nodes.CAGE_INPUT: cage, nodes.HANDLES_INPUT: obj.shapedeform.handle_collection,
+    values = {nodes.CAGE_INPUT: cage,
               nodes.RIGGED_INPUT: obj.shapedeform.get(RIGGED_KEY, ""), **(inputs or {})}
     for name, value in values.items():
         compat.set_modifier_input(modifier, ids[name], value)
