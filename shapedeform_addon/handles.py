@@ -17,6 +17,7 @@ from ..solver.rigging.plane import affine_inverse
 from . import nodes, rig_format
 from . import rig as rigs
 from .errors import NoPointsLeft, RigError
+from .sources import image_plane
 
 
 FOLLOW = "Shape Deform"  # the constraint by which a handle follows a curve with path animation
@@ -335,10 +336,13 @@ def settle_duplicate(obj):
     with handles of the rig (:func:`adopt_duplicated`), else a follower of the rig
     (:func:`follow`). Library data is left as the library has it."""
     if obj.library is None and rig_format.is_follower(obj):
+        copied_from = obj.shapedeform.cage.shapedeform.rig
         if not rig_format.modifiers_of(obj):  # converted (Keep Original), its modifier applied: frozen
             release_follower(obj)
-        elif not adopt_duplicated(obj):
+            return
+        if not adopt_duplicated(obj):
             follow(obj)
+        image_plane.own_quad(obj, copied_from)
     elif obj.library is None and rig_format.is_owner(obj):
         own_cage_mesh(obj)
 
@@ -398,7 +402,9 @@ def release_follower(obj):
     settings.handles.clear()
     rig_format.keep_handles_evaluated(obj)
     settings.handle_collection = None
-    settings.original_data = None
+    quad, settings.original_data = settings.original_data, None
+    if quad is not None and quad.users == 0:  # the quad copy made for it (image_plane.own_quad)
+        bpy.data.meshes.remove(quad)
     rig_format.forget(obj)
 
 

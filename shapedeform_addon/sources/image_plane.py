@@ -154,6 +154,28 @@ def prepare(obj, settings):
     return Prepared(plane, graph, commit, advice=advice)
 
 
+def own_quad(obj, copied_from):
+    """Give a duplicate of a bound image plane a quad of its own where its cut-out is its own;
+    True when it did.
+
+    Shift+D copies the cut-out but not the quad, which only the rig's settings point at: the two
+    planes then shared one rest quad, and an edit of either's quad after Unbind changed the
+    other's. A linked duplicate (Alt+D) shares the cut-out, so it shares the quad too.
+
+    Parameters
+    ----------
+    obj : bpy.types.Object
+        The duplicate.
+    copied_from : bpy.types.Object
+        The bound plane it was duplicated from (the owner of the rig it was made with).
+    """
+    quad = obj.shapedeform.original_data
+    if quad is None or quad != copied_from.shapedeform.original_data or obj.data == copied_from.data:
+        return False
+    obj.shapedeform.original_data = quad.copy()
+    return True
+
+
 def unbind(obj):
     """Give the quad back, with any transform applied to the cut-out since binding (Apply
     Rotation & Scale) applied to it too, so the picture stays where it is; unless the rig's

@@ -284,3 +284,32 @@ def test_a_pose_made_the_planes_own_stays_on_unbind(addon, tmp_path, capsys, how
         assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     else:
         assert obj.type == how
+
+
+@pytest.mark.parametrize("how", ["with handles", "alone", "linked"])
+def test_a_duplicate_gets_a_rest_quad_of_its_own(addon, tmp_path, how):
+    """Shift+D of a bound plane, with its handles (a rig of its own) or alone (it follows the
+    rig, and is unbound after the original): each plane gets its own quad back, so scaling the
+    copy's leaves the original's as imported (both shared one quad: the original's corners came
+    back at +-1.333 x +-1 instead of +-0.667 x +-0.5). Alt+D shares the cut-out, and so the quad."""
+    from mathutils import Matrix
+
+    obj, _ = import_picture(tmp_path)
+    quad = checks.mesh_points(obj).copy()
+    handles = checks.bind_with_handles(obj, (-0.44, -0.04, 0.0), (0.17, -0.04, 0.0))
+    checks.select_only(obj)
+    if how != "alone":
+        for handle in handles:
+            handle.select_set(True)
+    assert bpy.ops.object.duplicate(linked=how == "linked") == {"FINISHED"}
+    copy = bpy.context.active_object
+    assert copy != obj
+    for first in ((obj, copy) if how == "alone" else (copy, obj)):
+        checks.select_only(first)
+        assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    if how == "linked":
+        assert copy.data == obj.data and len(bpy.data.meshes) == 1
+        return
+    copy.data.transform(Matrix.Scale(2.0, 4))
+    np.testing.assert_array_equal(checks.mesh_points(obj), quad)
+    np.testing.assert_array_equal(checks.mesh_points(copy), 2.0 * quad)
