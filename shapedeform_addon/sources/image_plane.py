@@ -2,9 +2,10 @@
 """Image planes (Import Images as Planes): a textured quad whose picture has alpha.
 
 Binding replaces the quad by a triangulated cut-out of the picture's silhouette: the paper's
-graph of the traced outline, so the cut-out is its own graph. Its UVs come from the affine map
-the quad's own UVs define, so every point shows the texel it showed on the quad and the picture
-looks the same before posing. The quad's mesh is kept (``obj.shapedeform.original_data``) and
+graph of the traced outline, so the cut-out is its own graph. The picture is traced through the
+UV map it is read by (a UV Map node's, else the render-active one); each of the quad's UV maps
+goes onto the cut-out through the affine map its corners define, so every point shows the texel
+it showed on the quad and the picture looks the same before posing. The quad's mesh is kept (``obj.shapedeform.original_data``) and
 given back on unbind, untouched; the cut-out is then deleted.
 """
 
@@ -15,7 +16,7 @@ import numpy as np
 from mathutils import Matrix
 
 from ...solver.outline import outline_graph
-from ...solver.rigging.handles import apply_affine, invert_affine
+from ...solver.rigging.handles import apply_affine
 from ...solver.rigging.plane import fit_plane, transform_points
 from ...solver.rigging.silhouette import fit_affine, image_cutout
 from .. import rig_format
@@ -105,7 +106,27 @@ def is_image_plane(obj):
     """A quad (4 vertices, one face, UVs) textured with an image that has alpha."""
     data = obj.data
     return (obj.type == "MESH" and len(data.vertices) == 4 and len(data.polygons) == 1
-            and data.uv_layers.active is not None and _image(obj) is not None)
+            and len(data.uv_layers) > 0 and _image(obj) is not None)
+
+
+def _picture_uv_layer(quad, node):
+    """The UV map ``node`` reads its picture through: the one a UV Map node wired to its Vector
+    names, else the one Blender renders with (the render-active map, which also feeds an
+    unwired Vector). The map being edited (the active one) may be a scratch map."""
+    links = node.inputs["Vector"].links
+    source = links[0].from_node if links else None
+    while source is not None and source.type == "REROUTE":
+        links = source.inputs[0].links
+        source = links[0].from_node if links else None
+    named = source.uv_map if source is not None and source.type == "UVMAP" else ""
+    return quad.uv_layers.get(named) or next(layer for layer in quad.uv_layers if layer.active_render)
+
+
+def _loop_uvs(layer):
+    """(loops, 2) float64: a UV map's UV at each loop."""
+    uv = np.empty(len(layer.data) * 2, dtype=np.float32)
+    layer.data.foreach_get("uv", uv)
+    return uv.reshape(-1, 2).astype(np.float64)
 
 
 
@@ -121,26 +142,41 @@ def prepare(obj, settings):
     corners = mesh_source.positions(quad).astype(np.float64)
     loop_vertices = np.empty(len(quad.loops), dtype=np.int32)
     quad.loops.foreach_get("vertex_index", loop_vertices)
-    uv = np.empty(len(quad.loops) * 2, dtype=np.float32)
-    quad.uv_layers.active.data.foreach_get("uv", uv)
+    picture_layer = _picture_uv_layer(quad, node)
+    uv = _loop_uvs(picture_layer)
     try:
         plane = fit_plane(corners)
-        to_plane = fit_affine(uv.reshape(-1, 2), plane.to_2d(corners[loop_vertices]))
+    except ValueError as err:
+        raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
+    loop_points = plane.to_2d(corners[loop_vertices])
+    try:
+        to_plane = fit_affine(uv, loop_points)
+    except ValueError:
+        raise RigError(f"'{obj.name}': its UV map '{picture_layer.name}', which shows its picture, shows none of "
+                       "it (its corners' UVs lie on one line): unwrap the plane again") from None
+    try:
         # Only what the plane shows: its UVs may frame part of the picture (a sprite sheet's).
-        shown = uv.reshape(-1, 2).astype(np.float64) * (width, height)
         rings = [apply_affine(to_plane, ring / (width, height))
-                 for ring in image_cutout(alpha, window=shown)]
+                 for ring in image_cutout(alpha, window=uv * (width, height))]
         graph = outline_graph(rings, settings.density)
-        uvs = apply_affine(invert_affine(to_plane), graph.points)[graph.triangles].astype(np.float32)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     vertices = plane.to_3d(graph.points).astype(np.float32)  # float32 as Blender stores them
+    # Every UV map (a second one a shader reads, a scratch one) goes onto the cut-out through the
+    # map its corners define, so each still shows what it showed on the quad.
+    uv_maps = [(layer.name, apply_affine(fit_affine(loop_points, _loop_uvs(layer)),
+                                         graph.points)[graph.triangles].astype(np.float32))
+               for layer in quad.uv_layers]
+    active_uv = quad.uv_layers.active_index
+    render_uv = next(i for i, layer in enumerate(quad.uv_layers) if layer.active_render)
 
     def commit(o):
         cutout = bpy.data.meshes.new(f"{quad.name} Cut-out")
         cutout.from_pydata(vertices.tolist(), [], graph.triangles.tolist())
-        layer = cutout.uv_layers.new(name=quad.uv_layers.active.name)
-        layer.data.foreach_set("uv", uvs.ravel())
+        for name, uvs in uv_maps:
+            cutout.uv_layers.new(name=name).data.foreach_set("uv", uvs.ravel())
+        cutout.uv_layers.active_index = active_uv
+        cutout.uv_layers[render_uv].active_render = True
         for material in quad.materials:
             cutout.materials.append(material)
         cutout.update()

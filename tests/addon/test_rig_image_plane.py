@@ -19,12 +19,13 @@ def import_picture(folder):
     return checks.import_picture(folder, "picture", pixels), pixels
 
 
-def uv_of_points(mesh):
-    """Each vertex's UV (every loop of a vertex has the same UV on the cut-out)."""
+def uv_of_points(mesh, name=None):
+    """Each vertex's UV in the UV map ``name`` (the active one by default; every loop of a vertex
+    has the same UV on the cut-out)."""
     loops = np.empty(len(mesh.loops), np.int32)
     mesh.loops.foreach_get("vertex_index", loops)
     uv = np.empty(len(mesh.loops) * 2, np.float32)
-    mesh.uv_layers.active.data.foreach_get("uv", uv)
+    (mesh.uv_layers.active if name is None else mesh.uv_layers[name]).data.foreach_get("uv", uv)
     result = np.zeros((len(mesh.vertices), 2))
     result[loops] = uv.reshape(-1, 2)
     return result
@@ -313,3 +314,55 @@ def test_a_duplicate_gets_a_rest_quad_of_its_own(addon, tmp_path, how):
     copy.data.transform(Matrix.Scale(2.0, 4))
     np.testing.assert_array_equal(checks.mesh_points(obj), quad)
     np.testing.assert_array_equal(checks.mesh_points(copy), 2.0 * quad)
+
+
+@pytest.mark.parametrize("read_through", ["render-active map", "UV Map node"])
+def test_every_uv_map_is_kept_and_the_picture_is_cut_out_through_the_one_it_is_read_by(addon, tmp_path,
+                                                                                       read_through):
+    """A plane with three UV maps: the imported one, a scratch one being edited (active: half the
+    imported one, or collapsed to a point) and a copy turned a quarter. The picture is read through
+    the render-active map, or through the turned one by a UV Map node. Bind cuts the picture out
+    through that map (it used the active one: a quarter of the picture, or refused, 'the points
+    lie on one line') and the cut-out keeps every map, each showing what it showed on the quad,
+    with the same active and render-active maps (it kept the active one alone: a picture read
+    through another rendered nothing). A picture map collapsed is refused by name."""
+    obj, pixels = import_picture(tmp_path)
+    quad = obj.data
+    imported = uv_of_points(quad)
+    quad.uv_layers.new(name="Turned")
+    loops = np.empty(len(quad.loops), np.int32)
+    quad.loops.foreach_get("vertex_index", loops)
+    turned = np.stack([1.0 - imported[:, 1], imported[:, 0]], axis=1)
+    quad.uv_layers["Turned"].data.foreach_set("uv", turned[loops].astype(np.float32).ravel())
+    scratch = 0.5 * imported if read_through == "render-active map" else np.full_like(imported, 0.5)
+    quad.uv_layers.new(name="Scratch").data.foreach_set("uv", scratch[loops].astype(np.float32).ravel())
+    quad.uv_layers.active = quad.uv_layers["Scratch"]
+    quad.uv_layers["UVMap"].active_render = True
+    if read_through == "UV Map node":
+        tree = obj.active_material.node_tree
+        node = tree.nodes.new("ShaderNodeUVMap")
+        node.uv_map = "Turned"
+        tree.links.new(node.outputs["UV"], next(n for n in tree.nodes if n.type == "TEX_IMAGE").inputs["Vector"])
+    corners = checks.mesh_points(obj)[:, :2].astype(np.float64)
+    maps = {layer.name: np.linalg.lstsq(np.column_stack([corners, np.ones(4)]), uv_of_points(quad, layer.name),
+                                        rcond=None)[0] for layer in quad.uv_layers}
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    cutout = obj.data
+    points = np.column_stack([checks.mesh_points(obj)[:, :2], np.ones(len(cutout.vertices))])
+    for name, affine in maps.items():
+        assert name in cutout.uv_layers, f"UV map '{name}' was dropped"
+        error = np.abs(uv_of_points(cutout, name) - points @ affine).max()
+        assert error < 1e-5, f"UV map '{name}' is {error:.3f} off what the quad showed"
+    assert [layer.name for layer in cutout.uv_layers] == ["UVMap", "Turned", "Scratch"]
+    assert cutout.uv_layers.active.name == "Scratch" and cutout.uv_layers["UVMap"].active_render
+    # Cut out through the map the picture is read by: around its visible pixels, a pixel's margin.
+    picture = uv_of_points(cutout, "UVMap" if read_through == "render-active map" else "Turned")
+    yy, xx = np.nonzero(pixels[..., 3] > 0)
+    np.testing.assert_allclose(picture.min(axis=0), [xx.min() / W, yy.min() / H], atol=2.0 / W)
+    np.testing.assert_allclose(picture.max(axis=0), [(xx.max() + 1) / W, (yy.max() + 1) / H], atol=2.0 / W)
+
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    picture_map = "UVMap" if read_through == "render-active map" else "Turned"
+    obj.data.uv_layers[picture_map].data.foreach_set("uv", np.full(2 * len(quad.loops), 0.5, np.float32))
+    with pytest.raises(RuntimeError, match=f"its UV map '{picture_map}', which shows its picture, shows none of it"):
+        bpy.ops.shapedeform.bind()
