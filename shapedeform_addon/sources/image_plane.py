@@ -29,20 +29,26 @@ from .prepared import Prepared
 selected = mesh_source.selected
 
 
+def _material_index(obj):
+    """The material slot the quad's face shows (an index past the last slot shows the last)."""
+    return min(obj.data.polygons[0].material_index, len(obj.material_slots) - 1)
+
+
 def _image_node(obj):
-    """The image node textured on ``obj`` whose image has alpha, or None: the one whose alpha is
-    wired to something (a shader's Alpha), else the first. An image Blender could not load
-    (its file missing, a sequence no frame of which was shown yet) has no channels to tell:
-    it counts, so Bind can say what is wrong rather than rig the bare quad."""
+    """The image node of the material the quad's face shows whose image has alpha, or None: the
+    one whose alpha is wired to something (a shader's Alpha), else the first. An image Blender
+    could not load (its file missing, a sequence no frame of which was shown yet) has no
+    channels to tell: it counts, so Bind can say what is wrong rather than rig the bare quad."""
+    if not obj.material_slots:
+        return None
+    material = obj.material_slots[_material_index(obj)].material
+    if material is None or material.node_tree is None:
+        return None
     found = []
-    for slot in obj.material_slots:
-        material = slot.material
-        if material is None or material.node_tree is None:
-            continue
-        for node in material.node_tree.nodes:
-            image = getattr(node, "image", None) if node.type == "TEX_IMAGE" else None
-            if image is not None and image.channels in (0, 4) and image.alpha_mode != "NONE":
-                found.append((not node.outputs["Alpha"].is_linked, len(found), node))
+    for node in material.node_tree.nodes:
+        image = getattr(node, "image", None) if node.type == "TEX_IMAGE" else None
+        if image is not None and image.channels in (0, 4) and image.alpha_mode != "NONE":
+            found.append((not node.outputs["Alpha"].is_linked, len(found), node))
     return min(found)[2] if found else None
 
 
@@ -168,6 +174,7 @@ def prepare(obj, settings):
                                          graph.points)[graph.triangles].astype(np.float32))
                for layer in quad.uv_layers]
     active_uv = quad.uv_layers.active_index
+    material_index = _material_index(obj)
     render_uv = next(i for i, layer in enumerate(quad.uv_layers) if layer.active_render)
 
     def commit(o):
@@ -179,6 +186,7 @@ def prepare(obj, settings):
         cutout.uv_layers[render_uv].active_render = True
         for material in quad.materials:
             cutout.materials.append(material)
+        cutout.polygons.foreach_set("material_index", np.full(len(cutout.polygons), material_index, np.int32))
         cutout.update()
         o.shapedeform.original_data = quad
         o.shapedeform[CUTOUT_KEY] = vertices.astype(np.float32).ravel()  # to tell, at unbind, whether it was edited

@@ -366,3 +366,26 @@ def test_every_uv_map_is_kept_and_the_picture_is_cut_out_through_the_one_it_is_r
     obj.data.uv_layers[picture_map].data.foreach_set("uv", np.full(2 * len(quad.loops), 0.5, np.float32))
     with pytest.raises(RuntimeError, match=f"its UV map '{picture_map}', which shows its picture, shows none of it"):
         bpy.ops.shapedeform.bind()
+
+
+def test_the_picture_the_face_shows_is_the_one_cut_out(addon, tmp_path):
+    """The quad's face shows the material of its second slot (a disc on the right); the first
+    slot's material has a disc on the left. Bind cuts out the right disc and the cut-out's faces
+    show the same slot (it cut out the left disc, u 3.5 to 25.5 of 64, and showed slot 0)."""
+    yy, xx = np.mgrid[:H, :W]
+    discs = {}
+    for name, centre in (("left", 14), ("right", 50)):
+        pixels = np.ones((H, W, 4), np.float32)
+        pixels[..., 3] = ((xx - centre) ** 2 + (yy - 24) ** 2) < 10 ** 2
+        discs[name] = checks.import_picture(tmp_path, name, pixels)
+    obj = discs["left"]
+    obj.data.materials.append(discs["right"].active_material)
+    obj.data.polygons[0].material_index = 1
+    bpy.data.objects.remove(discs["right"])
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    u = uv_of_points(obj.data)[:, 0] * W
+    assert (u.min(), u.max()) == pytest.approx((50 - 11, 50 + 11), abs=1.0)
+    slots = np.empty(len(obj.data.polygons), np.int32)
+    obj.data.polygons.foreach_get("material_index", slots)
+    assert set(slots) == {1}
