@@ -4,8 +4,9 @@
 Binding replaces the quad by a triangulated cut-out of the picture's silhouette: the paper's
 graph of the traced outline, so the cut-out is its own graph. The picture is traced through the
 UV map it is read by (a UV Map node's, else the render-active one); each of the quad's UV maps
-goes onto the cut-out through the affine map its corners define, so every point shows the texel
-it showed on the quad and the picture looks the same before posing. The quad's mesh is kept (``obj.shapedeform.original_data``) and
+goes onto the cut-out through the quad's own two triangles, each mapped affinely as Blender
+interpolates a face's UVs, so every point shows the texel it showed on the quad and the picture
+looks the same before posing. The quad's mesh is kept (``obj.shapedeform.original_data``) and
 given back on unbind, untouched; the cut-out is then deleted.
 """
 
@@ -16,9 +17,8 @@ import numpy as np
 from mathutils import Matrix
 
 from ...solver.outline import outline_graph
-from ...solver.rigging.handles import apply_affine
 from ...solver.rigging.plane import fit_plane, transform_points
-from ...solver.rigging.silhouette import fit_affine, image_cutout
+from ...solver.rigging.silhouette import image_cutout, map_by_triangles
 from .. import rig_format
 from ..rig_format import CUTOUT_KEY
 from ..errors import RigError
@@ -155,23 +155,32 @@ def prepare(obj, settings):
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     loop_points = plane.to_2d(corners[loop_vertices])
+    # UVs are interpolated over the triangles Blender splits the face into, each affinely: map
+    # through the same triangles, so a quad that is no parallelogram shows the same texels.
+    quad.calc_loop_triangles()
+    loop_triangles = np.empty(len(quad.loop_triangles) * 3, dtype=np.int32)
+    quad.loop_triangles.foreach_get("loops", loop_triangles)
+    loop_triangles = loop_triangles.reshape(-1, 3)
+
+    def to_plane(uv_points):
+        return map_by_triangles(uv, loop_points, loop_triangles, uv_points)
+
     try:
-        to_plane = fit_affine(uv, loop_points)
+        to_plane(uv)  # refuses a picture map that covers no area
     except ValueError:
         raise RigError(f"'{obj.name}': its UV map '{picture_layer.name}', which shows its picture, shows none of "
                        "it (its corners' UVs lie on one line): unwrap the plane again") from None
     try:
         # Only what the plane shows: its UVs may frame part of the picture (a sprite sheet's).
-        rings = [apply_affine(to_plane, ring / (width, height))
-                 for ring in image_cutout(alpha, window=uv * (width, height))]
+        rings = [to_plane(ring / (width, height)) for ring in image_cutout(alpha, window=uv * (width, height))]
         graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     vertices = plane.to_3d(graph.points).astype(np.float32)  # float32 as Blender stores them
-    # Every UV map (a second one a shader reads, a scratch one) goes onto the cut-out through the
-    # map its corners define, so each still shows what it showed on the quad.
-    uv_maps = [(layer.name, apply_affine(fit_affine(loop_points, _loop_uvs(layer)),
-                                         graph.points)[graph.triangles].astype(np.float32))
+    # Every UV map (a second one a shader reads, a scratch one) goes onto the cut-out, so each
+    # still shows what it showed on the quad.
+    uv_maps = [(layer.name, map_by_triangles(loop_points, _loop_uvs(layer), loop_triangles,
+                                             graph.points)[graph.triangles].astype(np.float32))
                for layer in quad.uv_layers]
     active_uv = quad.uv_layers.active_index
     material_index = _material_index(obj)

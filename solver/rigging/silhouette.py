@@ -15,7 +15,7 @@ from scipy import ndimage
 from ..shapes import _polygonal_part, geometry_rings, shape_geometry
 from ..trace import coverage, trace_silhouette
 
-__all__ = ["stroke_silhouette", "image_cutout", "fit_affine"]
+__all__ = ["stroke_silhouette", "image_cutout", "map_by_triangles"]
 
 
 def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, tolerance=None):
@@ -149,31 +149,45 @@ def _without_dust(alpha, level):
     return np.where(faint, 0.0, alpha) if faint.any() else alpha
 
 
-def fit_affine(source, target):
-    """The affine map (3x3) that best takes 2D ``source`` points to ``target`` points.
+def map_by_triangles(source, target, triangles, points):
+    """Map 2D points by the map that takes each triangle of ``source`` points affinely onto the
+    same triangle of ``target`` points: how a face's UVs are interpolated over the triangles
+    Blender splits it into. (A quad with a corner moved is no parallelogram: one affine map
+    fitted to its four corners put its cut-out's UVs up to 5% of the picture off.)
 
     Parameters
     ----------
     source, target : (k, 2) array_like
-        At least three points not on one line.
+        Corresponding points (a face's corners in two spaces).
+    triangles : (t, 3) array_like of int
+        Indices into them. A triangle whose source corners lie on one line covers no point and
+        is left out.
+    points : (p, 2) array_like
+        In the space of ``source``. A point outside every triangle follows the one it is least
+        outside of (its map extended), so a margin beyond the face stays continuous.
 
     Returns
     -------
-    (3, 3) float64 ndarray
+    (p, 2) float64 ndarray
 
     Raises
     ------
     ValueError
-        Fewer than 3 points, or source points on one line.
+        Every triangle's source corners lie on one line.
     """
     source = np.asarray(source, dtype=np.float64)
     target = np.asarray(target, dtype=np.float64)
-    if len(source) < 3 or source.shape != target.shape:
-        raise ValueError("an affine fit needs at least 3 matching points")
-    design = np.column_stack([source, np.ones(len(source))])
-    solution, _, rank, _ = np.linalg.lstsq(design, target, rcond=None)
-    if rank < 3:
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    # Each triangle's corners as rows (x, y, 1): a point (x, y, 1) is its barycentric weights
+    # times these rows.
+    corners = np.concatenate([source[triangles], np.ones((len(triangles), 3, 1))], axis=2)
+    size = max(float(np.ptp(source, axis=0).max()) if len(source) else 0.0, 1e-300)
+    flat = np.abs(np.linalg.det(corners)) <= 1e-12 * size ** 2 if len(triangles) else np.ones(0, bool)
+    if flat.all():
         raise ValueError("the points lie on one line: no affine map is defined")
-    affine = np.eye(3)
-    affine[:2] = solution.T
-    return affine
+    corners, triangles = corners[~flat], triangles[~flat]
+    weights = np.einsum("pj,tjk->ptk", np.column_stack([points, np.ones(len(points))]), np.linalg.inv(corners))
+    chosen = weights.min(axis=2).argmax(axis=1)
+    weights = weights[np.arange(len(points)), chosen]
+    return np.einsum("pk,pkd->pd", weights, target[triangles[chosen]])

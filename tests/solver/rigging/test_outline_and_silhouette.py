@@ -1,5 +1,5 @@
 """solver.rigging.outline and solver.rigging.silhouette: mesh boundaries, Bezier outlines, stroke
-and image silhouettes, and the affine fit used to map a picture's UVs onto its cut-out."""
+and image silhouettes, and the map that carries a picture's UVs onto its cut-out."""
 
 import numpy as np
 import pytest
@@ -7,7 +7,7 @@ import shapely
 
 from solver.rigging.handles import apply_affine
 from solver.rigging.outline import boundary_loops, sample_bezier, with_area
-from solver.rigging.silhouette import fit_affine, image_cutout, stroke_silhouette
+from solver.rigging.silhouette import image_cutout, map_by_triangles, stroke_silhouette
 from solver.shapes import shape_geometry
 
 from sample_shapes import disk
@@ -97,12 +97,26 @@ def test_image_cutout_leaves_out_dust_nobody_sees_and_keeps_a_single_opaque_pixe
     assert len(parts) == 2 and min(part.area for part in parts) >= 1.0
 
 
-def test_fit_affine_recovers_a_map():
-    source = np.array([[0, 0], [1, 0], [0, 1], [1, 1.0]])
+def test_map_by_triangles_maps_each_triangle_affinely_as_a_face_shows_its_uvs():
+    """A parallelogram maps by one affine map; a quad with a corner moved maps each of its two
+    triangles by its own, meeting on the diagonal, with its corners exact (one affine map fitted
+    to the four corners missed them); a point outside follows the nearest triangle's map."""
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]])
+    halves = np.array([[0, 1, 2], [0, 2, 3]])
     affine = np.array([[2, 1, 3], [0, 0.5, -1], [0, 0, 1.0]])
-    np.testing.assert_allclose(fit_affine(source, apply_affine(affine, source)), affine, atol=1e-12)
+    probes = np.random.default_rng(0).uniform(-0.2, 1.2, (50, 2))
+    np.testing.assert_allclose(map_by_triangles(square, apply_affine(affine, square), halves, probes),
+                               apply_affine(affine, probes), atol=1e-12)
+    pinned = square + [[0, 0], [0, 0], [0.3, 0.2], [0, 0]]
+    np.testing.assert_allclose(map_by_triangles(pinned, square, halves, pinned), square, atol=1e-12)
+    diagonal = np.linspace(0, 1, 5)[:, None] * pinned[2]
+    np.testing.assert_allclose(map_by_triangles(pinned, square, halves, diagonal),
+                               np.linspace(0, 1, 5)[:, None] * [1.0, 1.0], atol=1e-12)
+    # Under the first triangle's edge: its map, x + (-0.25) y and (1 / 1.2) y, carried on.
+    below = map_by_triangles(pinned, square, halves, [[0.5, -0.1]])
+    np.testing.assert_allclose(below, [[0.525, -0.1 / 1.2]], atol=1e-12)
     with pytest.raises(ValueError, match="one line"):
-        fit_affine(np.array([[0, 0], [1, 1], [2, 2.0]]), np.zeros((3, 2)))
+        map_by_triangles(np.array([[0, 0], [1, 1], [2, 2.0]]), np.zeros((3, 2)), [[0, 1, 2]], [[0, 0]])
 
 
 def test_smallest_angles():
