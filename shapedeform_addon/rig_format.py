@@ -52,6 +52,7 @@ BAKE_MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
 # deforms ("" for all of them); the modifier is given the same name.
 RIGGED_KEY = "rigged_attribute"
 CUTOUT_KEY = "cutout_points"  # on an image plane's settings: the cut-out's vertices as bind made them
+CUTOUT_ATTRIBUTES = "cutout_attributes"  # ... and its attributes (UV maps with a digest of their UVs)
 HANDLE_INDICES = "indices"  # on a handle's item: the graph points it owns
 HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when it was added
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
@@ -99,7 +100,7 @@ def read_graph(obj):
 
 def clear(settings):
     """Drop everything this module keeps on an owner's ``settings`` as ID properties (unbind)."""
-    for key in GRAPH_KEYS + (BAKED, RIGGED_KEY, CUTOUT_KEY) + LEGACY_KEYS:
+    for key in GRAPH_KEYS + (BAKED, RIGGED_KEY, CUTOUT_KEY, CUTOUT_ATTRIBUTES) + LEGACY_KEYS:
         settings.pop(key, None)
 
 

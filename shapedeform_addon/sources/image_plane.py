@@ -10,6 +10,7 @@ looks the same before posing. The quad's mesh is kept (``obj.shapedeform.origina
 given back on unbind, untouched; the cut-out is then deleted.
 """
 
+import hashlib
 import os
 
 import bpy
@@ -20,7 +21,7 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane, transform_points
 from ...solver.rigging.silhouette import image_cutout, map_by_triangles
 from .. import rig_format
-from ..rig_format import CUTOUT_KEY
+from ..rig_format import CUTOUT_ATTRIBUTES, CUTOUT_KEY
 from ..errors import RigError
 from . import mesh as mesh_source
 from .prepared import Prepared
@@ -198,7 +199,9 @@ def prepare(obj, settings):
         cutout.polygons.foreach_set("material_index", np.full(len(cutout.polygons), material_index, np.int32))
         cutout.update()
         o.shapedeform.original_data = quad
-        o.shapedeform[CUTOUT_KEY] = vertices.astype(np.float32).ravel()  # to tell, at unbind, whether it was edited
+        # To tell, at unbind, whether it was edited.
+        o.shapedeform[CUTOUT_KEY] = vertices.astype(np.float32).ravel()
+        o.shapedeform[CUTOUT_ATTRIBUTES] = _attribute_digests(cutout)
         o.data = cutout
 
     if not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
@@ -241,18 +244,22 @@ def unbind(obj):
         # Converted, or its modifier applied: the pose is the object's own now, kept as a
         # mesh's would be (the status bar said so); the quad is not given back over it.
         obj.shapedeform.pop(CUTOUT_KEY, None)
+        obj.shapedeform.pop(CUTOUT_ATTRIBUTES, None)
         obj.shapedeform.original_data = None
         return []
     applied = rig_format.rig_to_object(obj)
     cutout = obj.data
-    lost = [] if _as_bound(obj, cutout, applied) else \
+    as_bound = _as_bound(obj, cutout, applied)
+    lost = [] if as_bound else \
         ["the edits of its cut-out's vertices, in Edit Mode or by Join or Separate (the picture's quad is "
          "back; Undo brings them back)"]
+    lost += _attribute_edits(obj, cutout, uvs_too=as_bound)
     if cutout.shape_keys is not None:
         lost.append("the shape keys of its cut-out (the picture's quad has none; Undo brings them back)")
     if list(cutout.materials) != list(original.materials):
         lost.append("the materials given to its cut-out (the picture's quad keeps its own; Undo brings them back)")
     obj.shapedeform.pop(CUTOUT_KEY, None)
+    obj.shapedeform.pop(CUTOUT_ATTRIBUTES, None)
     obj.data = original
     obj.shapedeform.original_data = None
     if not np.allclose(applied, np.eye(4), rtol=0.0, atol=1e-6):
@@ -276,6 +283,36 @@ def _as_bound(obj, cutout, applied):
     cutout.vertices.foreach_get("co", now)
     expected = transform_points(applied, bound)
     return bool(np.allclose(now.reshape(-1, 3), expected, rtol=0.0, atol=1e-5 * max(np.ptp(bound, axis=0).max(), 1e-9)))
+
+
+def _attribute_digests(mesh):
+    """{name: digest} of the attributes of a cut-out one can edit or add: a UV map's digest is
+    of its UVs; any other attribute is told by its name alone ("")."""
+    uvs = {layer.name: hashlib.sha1(_loop_uvs(layer).tobytes()).hexdigest() for layer in mesh.uv_layers}
+    return {attribute.name: uvs.get(attribute.name, "") for attribute in mesh.attributes
+            if attribute.name != "position" and not attribute.name.startswith(".")}  # "." marks selection and such
+
+
+def _attribute_edits(obj, cutout, uvs_too):
+    """What Unbind drops beyond the cut-out's vertices: its UV maps edited (when ``uvs_too``:
+    vertices added or deleted change them with no edit of their own), attributes added (colours
+    painted), vertex-group weights; as phrases for a message."""
+    lost = []
+    bound = obj.shapedeform.get(CUTOUT_ATTRIBUTES)
+    if bound is not None:  # bound by a version that kept them
+        bound = bound.to_dict()
+        now = _attribute_digests(cutout)
+        edited = [name for name, digest in now.items() if name in bound and digest != bound[name]]
+        added = [name for name in now if name not in bound]
+        if edited and uvs_too:
+            lost.append(f"the edits of its cut-out's UV maps ({', '.join(map(repr, edited))}; the picture's quad "
+                        "keeps its own; Undo brings them back)")
+        if added:
+            lost.append(f"the attributes added to its cut-out ({', '.join(map(repr, added))}: colours and the like; "
+                        "Undo brings them back)")
+    if any(vertex.groups for vertex in cutout.vertices):  # bind gives the cut-out no weights
+        lost.append("the vertex-group weights of its cut-out (the picture's quad keeps its own; Undo brings them back)")
+    return lost
 
 
 def restore_legacy(obj):

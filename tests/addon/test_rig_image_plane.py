@@ -429,3 +429,36 @@ def test_a_quad_with_a_corner_moved_shows_the_same_picture_once_cut_out(addon, t
     assert on_quad.sum() > 0.9 * len(points)
     error = np.abs(uv_of_points(obj.data)[on_quad] - shown[on_quad]).max()
     assert error < 1e-5, f"the cut-out's UVs are up to {error:.3f} of the picture off the quad's"
+
+
+@pytest.mark.parametrize("edit, said", [("none", None), ("uv", "UV maps ('UVMap'"),
+                                        ("colour", "attributes added to its cut-out ('Paint'"),
+                                        ("weights", "vertex-group weights")])
+def test_unbind_names_the_uv_colour_and_weight_edits_it_drops(addon, tmp_path, edit, said):
+    """UVs edited, a colour attribute painted or vertex-group weights given to the cut-out go
+    with it on Unbind, which says so (it said nothing); a trip through Edit Mode that edits
+    nothing is no edit."""
+    import bmesh
+
+    obj, _ = import_picture(tmp_path)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    cutout = obj.data
+    bpy.ops.object.mode_set(mode="EDIT")
+    if edit == "uv":
+        edited = bmesh.from_edit_mesh(cutout)
+        layer = edited.loops.layers.uv.active
+        for loop in next(iter(edited.faces)).loops:
+            loop[layer].uv *= 0.5
+        bmesh.update_edit_mesh(cutout)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    if edit == "colour":
+        paint = cutout.color_attributes.new("Paint", "FLOAT_COLOR", "POINT")
+        paint.data.foreach_set("color", np.tile(np.float32([1, 0, 0, 1]), len(cutout.vertices)))
+    elif edit == "weights":
+        obj.vertex_groups.new(name="Arm").add(list(range(10)), 1.0, "REPLACE")
+    lost = addon.shapedeform_addon.binding.unbind(obj)
+    assert len(obj.data.vertices) == 4
+    if said is None:
+        assert lost == []
+    else:
+        assert len(lost) == 1 and said in lost[0], lost
