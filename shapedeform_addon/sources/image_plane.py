@@ -204,6 +204,9 @@ def prepare(obj, settings):
         o.shapedeform[CUTOUT_ATTRIBUTES] = _attribute_digests(cutout)
         o.data = cutout
 
+    if quad.shape_keys is not None and len(quad.shape_keys.key_blocks) > 1:
+        advice = "; ".join(filter(None, [advice, "its shape keys stop showing while it is bound (the cut-out has "
+                                                  "none; Unbind gives the quad back with them)"]))
     if not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
         advice = "; ".join(filter(None, [advice, "its UVs show the picture more than once: only the copy in "
                                                   "the UV square is cut out"]))

@@ -462,3 +462,22 @@ def test_unbind_names_the_uv_colour_and_weight_edits_it_drops(addon, tmp_path, e
         assert lost == []
     else:
         assert len(lost) == 1 and said in lost[0], lost
+
+
+def test_bind_says_a_quads_shape_keys_stop_showing(addon, tmp_path, capsys):
+    """A quad squashed by a shape key (height 0.5 of 1) shows unsquashed once cut out (0.667:
+    the cut-out has no keys): Bind says so (it said nothing), and Unbind gives the keys back."""
+    obj, _ = import_picture(tmp_path)
+    obj.shape_key_add(name="Basis")
+    squash = obj.shape_key_add(name="Squash")
+    squash.data.foreach_set("co", (checks.mesh_points(obj) * [1.0, 0.5, 1.0]).astype(np.float32).ravel())
+    squash.value = 1.0
+    bpy.context.view_layer.update()
+    squashed = np.ptp(checks.evaluated_mesh_points(obj)[:, 1])
+    assert squashed == pytest.approx(0.5)
+    capsys.readouterr()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert "its shape keys stop showing while it is bound" in capsys.readouterr().out
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    assert np.ptp(checks.evaluated_mesh_points(obj)[:, 1]) == pytest.approx(squashed)
