@@ -196,6 +196,10 @@ class Bake:
         if not self.frames:
             raise RigError("Nothing to bake: the frame range is empty")
         self.step_size = int(step)
+        # The live rigs this bake leaves live: the paused handlers do not pose them, so the bake
+        # does, on every frame, for the baked rigs whose handles may follow their shapes.
+        self.live = [obj for obj in rig_format.owners(self.scene, depsgraph) if obj not in self.objects
+                     and obj.shapedeform.handles and not rig_format.is_baked(obj)]
         self.captured = {obj.name: [] for obj in self.objects}
         self.times = []  # the animation time each frame showed
         self.done = 0
@@ -218,22 +222,32 @@ class Bake:
             self.scene.frame_set(frame)
         self.times.append(self.scene.frame_current_final)
         depsgraph = bpy.context.evaluated_depsgraph_get()
-        posed = {obj.name: rig.pose(obj, depsgraph, final=True) for obj in self.objects}  # not via the handlers
+        posed = {}  # not via the handlers
+        chain = [obj for obj in self.objects + self.live if self._pose(obj, depsgraph, posed)]
         # A rig whose handles follow another rig's shape (a hat pinned to a deformed head) sees
         # that shape's new pose only once the depsgraph has evaluated it: evaluate, and pose again
         # the rigs whose handles moved, once per link of such a chain.
-        for _ in range(len(self.objects) - 1):
-            before = {obj.name: rig.handle_frames(obj, depsgraph) for obj in self.objects}
+        for _ in range(len(chain) - 1):
+            before = {obj.name: rig.handle_frames(obj, depsgraph) for obj in chain}
             with handlers.paused():
                 depsgraph.update()
-            moved = [obj for obj in self.objects if not np.array_equal(rig.handle_frames(obj, depsgraph), before[obj.name])]
+            moved = [obj for obj in chain if not np.array_equal(rig.handle_frames(obj, depsgraph), before[obj.name])]
             if not moved:
                 break
-            posed.update((obj.name, rig.pose(obj, depsgraph, final=True)) for obj in moved)
+            chain = [obj for obj in chain if obj not in moved or self._pose(obj, depsgraph, posed)]
         for obj in self.objects:
-            self.captured[obj.name].append(posed[obj.name].shown)
+            self.captured[obj.name].append(posed[obj.name])
         self.done += 1
         return self.done == self.total
+
+    def _pose(self, obj, depsgraph, posed):
+        """Pose ``obj``'s rig at this frame, keeping a baked rig's pose in ``posed``; False when
+        a live rig failed (it keeps its last pose and says why in its status, as in playback,
+        and the bake goes on without it)."""
+        if obj in self.objects:
+            posed[obj.name] = rig.pose(obj, depsgraph, final=True).shown
+            return True
+        return not rig.pose_safely(obj, depsgraph, final=True)
 
     def _restore_frame(self):
         self.scene.frame_set(self.original_frame[0], subframe=self.original_frame[1])

@@ -309,10 +309,9 @@ def test_a_bake_with_time_stretching_plays_as_the_live_rig(addon):
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
 
 
-def test_a_rig_whose_handle_follows_another_rigs_shape_bakes_on_the_same_frame(addon):
-    """Rig B's handle follows a point of rigged object A's deformed shape (a hat pinned to a
-    head, here by Copy Location to A's vertex group): each baked frame of B is posed from A's
-    pose at that frame (B was baked from A's pose at the frame before: one frame late)."""
+def hat_on_a_head():
+    """Rig B, whose handle follows a point of rigged object A's deformed shape (a hat pinned to
+    a head, here by Copy Location to A's vertex group), and A; with B's live pose at each frame."""
     first = grid("A")
     rig(first, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.6, 0.0))
     second = grid("B")
@@ -333,8 +332,34 @@ def test_a_rig_whose_handle_follows_another_rigs_shape_bakes_on_the_same_frame(a
         scene.frame_set(frame)  # twice: the second pass poses B from A's new shape
         expected[frame] = checks.evaluated_mesh_points(second).copy()
     assert np.abs(expected[6] - expected[1]).max() > 0.1
+    return first, second, expected
+
+
+def test_a_rig_whose_handle_follows_another_rigs_shape_bakes_on_the_same_frame(addon):
+    """Each baked frame of B is posed from A's pose at that frame (B was baked from A's pose
+    at the frame before: one frame late)."""
+    first, second, expected = hat_on_a_head()
     assert addon.shapedeform_addon.bake.bake_objects([first, second], 1, 6) == [first, second]
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(second), expected)
+
+
+def test_baking_only_the_rig_that_follows_another_live_rig_poses_that_rig_on_every_frame(addon):
+    """The animator selects only the hat and bakes it: A stays live, and each baked frame of B
+    is still posed from A's pose at that frame (B was baked against A's pose frozen at the
+    bake's first frame, up to 0.6 off by frame 6); A shows its live pose afterwards."""
+    first, second, expected = hat_on_a_head()
+    scene = bpy.context.scene
+    scene.frame_set(3)
+    head = checks.evaluated_mesh_points(first).copy()
+    checks.select_only(second)
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    assert "baked" not in first.shapedeform
+    np.testing.assert_allclose(checks.evaluated_mesh_points(first), head, atol=1e-5)
+    errors = {}
+    for frame in FRAMES:
+        scene.frame_set(frame)
+        errors[frame] = float(np.abs(checks.evaluated_mesh_points(second) - expected[frame]).max())
+    assert max(errors.values()) < 1e-5, f"baked B off its live pose, per frame: {errors}"
 
 
 def test_the_python_entry_point_bakes_the_scene_it_is_given(addon):
