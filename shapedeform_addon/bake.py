@@ -68,7 +68,10 @@ def _remove_keys(cage):
     key = cage.data.shape_keys
     if key is None:
         return 0
-    action = key.animation_data.action if key.animation_data else None
+    animation = key.animation_data
+    # Pushed down (or stashed), the bake's action is a strip's, no longer the active one.
+    actions = [] if animation is None else [animation.action] + [
+        strip.action for track in animation.nla_tracks for strip in track.strips]
     removed = sum(1 for b in key.key_blocks if b.name.startswith(PREFIX))
     uid = key.session_uid
     cage.shape_key_clear()
@@ -78,8 +81,8 @@ def _remove_keys(cage):
     left = [k for k in bpy.data.shape_keys if k.session_uid == uid]
     if left:
         bpy.data.batch_remove(left)
-    if action is not None and action.get(MARK) and action.users == 0:
-        bpy.data.actions.remove(action)
+    bpy.data.batch_remove({action for action in actions
+                           if action is not None and action.get(MARK) and action.users == 0})
     return removed
 
 

@@ -362,6 +362,39 @@ def test_baking_only_the_rig_that_follows_another_live_rig_poses_that_rig_on_eve
     assert max(errors.values()) < 1e-5, f"baked B off its live pose, per frame: {errors}"
 
 
+def test_a_bake_pushed_down_to_the_nla_is_replaced_and_cleared_with_its_action(addon):
+    """README: the bake's keys push to the NLA as any keys do. Pushed down, the bake plays;
+    baking again and Clear Bake remove its action (it was left behind with no user, one more
+    on every bake); a new bake plays."""
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    expected = live(lambda: checks.evaluated_mesh_points(obj))
+    bake = addon.shapedeform_addon.bake
+    scene = bpy.context.scene
+
+    def push_down():
+        animation = obj.shapedeform.cage.data.shape_keys.animation_data
+        action = animation.action
+        animation.nla_tracks.new().strips.new(action.name, 1, action)
+        animation.action = None
+
+    handle_actions = {a.name for a in bpy.data.actions}
+    bake.bake_objects([obj], 1, 6)
+    push_down()
+    scene.frame_set(4)
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), expected[4], atol=1e-5)
+    bake.bake_objects([obj], 1, 6)  # replaces the pushed-down bake
+    assert len(bpy.data.actions) == len(handle_actions) + 1
+    push_down()
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+    left = sorted({a.name for a in bpy.data.actions} - handle_actions)
+    assert left == [], f"Clear Bake left {len(left)} action(s): {left}"
+    bake.bake_objects([obj], 1, 6)
+    scene.frame_set(3)
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), expected[3], atol=1e-5)
+
+
 def test_the_python_entry_point_bakes_the_scene_it_is_given(addon):
     """``bake_objects(..., scene=X)`` with another scene active poses X's frames from X's
     depsgraph (it read the active scene's, where the rig is not evaluated)."""
