@@ -235,10 +235,18 @@ def adopt_duplicated(obj):
     handle list then names the copied Empties, whose rig is the copy. Those become its
     handles; it gets its own cage (a copy of the rig's, pose and bake included) and its own
     handle collection, and its list drops the handles that stayed with the original.
+
+    Pins alone pull nothing, and a rig of their own would snap the copy to its rest shape:
+    duplicated without a handle, the copy follows the rig, and the copied pins are copies of
+    the rig's pins, as pins duplicated alone are (:func:`listed` names none of them).
     """
     settings = obj.shapedeform
     own = [item.object for item in settings.handles if owns(obj, item.object)]
     if not own:
+        return False
+    if all(empty.shapedeform.pin_kind != "POSITION" for empty in own):
+        for empty in own:
+            empty.shapedeform.rig = settings.cage.shapedeform.rig
         return False
     shared = settings.cage
     cage = _cage_for(obj, shared, shared.data.copy())

@@ -177,6 +177,34 @@ def test_a_duplicate_made_with_its_handles_gets_a_rig_of_its_own(addon, linked, 
     moves(original.shapedeform.handles[0].object, original, copy)
 
 
+def test_a_duplicate_made_with_a_pin_but_no_handle_follows_the_rig(addon, quiet):
+    """Duplicating a rigged object with one of its pins and none of its handles makes a copy
+    that follows the rig, as a plain Shift+D does (it became a rig of its own with no handle and
+    snapped to its rest shape on the next frame, 0.8 off here); the copied pin is a copy of a
+    pin, as one duplicated alone: its rig's list does not name it, and it moves nothing."""
+    original, left, right = rig_with_two_handles()
+    checks.select_only(original)
+    assert bpy.ops.shapedeform.add_handle(location=checks.world(original, [0.0, 0.0, 0.0]),
+                                          kind="STARCH") == {"FINISHED"}
+    pin = original.shapedeform.handles[-1].object
+    right.location.y += 0.8
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_mesh_points(original).copy()
+    checks.select_only(original)
+    pin.select_set(True)
+    assert bpy.ops.object.duplicate() == {"FINISHED"}
+    copy = bpy.context.active_object
+    pin_copy = next(o for o in bpy.context.selected_objects if o.type == "EMPTY")
+    bpy.context.scene.frame_set(2)
+    off = float(np.abs(checks.evaluated_mesh_points(copy) - posed).max())
+    assert off < 1e-5, f"the copy is {off:.3g} off the rig's pose"
+    rig_format = addon.shapedeform_addon.rig_format
+    assert rig_format.is_follower(copy) and copy.shapedeform.cage.shapedeform.rig == original
+    assert pin_copy.shapedeform.rig == original
+    assert [item.object for item in original.shapedeform.handles] == [left, right, pin]
+    _assert_still_follows(copy, right, checks.mesh_points(original))
+
+
 def test_a_handle_added_in_edit_mode_on_a_duplicate_holds_the_selected_point(addon):
     """Edit Mode on a duplicate that follows the rig, a point selected, Add Handle: the handle
     goes to the rig (its owner's), on the point the duplicate shares with it, and moving it
