@@ -107,10 +107,12 @@ def on_depsgraph_update(scene, depsgraph):
     """A handle moved (or a rigged object's handles did): solve and write at once.
 
     A duplicate of a rig's owner gets its follower's cage here, or, made together with handles
-    of the rig, a rig of its own.
+    of the rig, a rig of its own. A handle or pin made active (selecting evaluates) becomes its
+    rig's list's active item.
     """
     if _busy:
         return
+    handles.follow_active_object(depsgraph.view_layer)
     moved = {}
     if any(isinstance(update.id, bpy.types.Collection) for update in depsgraph.updates):
         for obj in rig_format.bound_objects():  # an object moved between collections, perhaps a handle

@@ -52,6 +52,23 @@ def set_active(settings, index):
     settings["active_handle"] = max(int(index), 0)
 
 
+def follow_active_object(view_layer):
+    """Make the active object, when it is a handle or pin of a rig, its list's active item, as
+    Blender's lists follow the active bone or material slot (a click in the viewport picks it,
+    and the sidebar shows and removes what was clicked); nothing is selected. True when the
+    item changed."""
+    empty = view_layer.objects.active
+    owner = rig_of(empty) if empty is not None and empty.type == "EMPTY" else None
+    if owner is None or owner.library is not None:  # a linked rig's list is the library's
+        return False
+    settings = owner.shapedeform
+    index = next((i for i, item in enumerate(settings.handles) if item.object == empty), None)
+    if index is None or index == settings.active_handle:
+        return False
+    set_active(settings, index)
+    return True
+
+
 def collection(obj):
     """The collection of ``obj``'s rig (handles and cage), made when missing."""
     settings = obj.shapedeform

@@ -128,6 +128,30 @@ def test_pins_show_their_kind_and_values_and_the_overlay_tints_their_reach(addon
     assert data["reach_colors"][:, 3].max() == np.float32(0.5 * overlay.REACH_OPACITY)
 
 
+def test_the_list_follows_a_handle_or_pin_made_active_in_the_viewport(addon):
+    """A click in the viewport makes a pin or handle the active object: the list's active item
+    follows it, as Blender's lists follow the active bone or material slot, so the sidebar shows
+    its values and '-' removes it (they were the last added pin's); nothing else is selected."""
+    obj = grid()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    handle = checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    pins = []
+    for x, kind in ((0.8, "OVERLAP"), (0.0, "STARCH")):
+        bpy.context.view_layer.objects.active = obj
+        assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [x, 0.0, 0.0]), kind=kind) == {"FINISHED"}
+        pins.append(obj.shapedeform.handles[-1].object)
+    overlap, starch = pins
+    settings = obj.shapedeform
+    for clicked, index, values in ((overlap, 1, "in_front"), (handle, 0, None), (starch, 2, "stiffness")):
+        checks.select_only(clicked)
+        bpy.context.view_layer.update()  # as Blender evaluates after a click, before it redraws
+        assert settings.active_handle == index, f"'{clicked.name}' clicked, item {settings.active_handle} active"
+        items, labels = drawn(bpy.context), drawn(bpy.context, labels=True)
+        assert values is None or (values in items and any(clicked.name in text for text in labels)), labels
+        assert list(bpy.context.selected_objects) == [clicked]
+
+
 def test_panel_shows_the_modifier_option_for_the_kind_of_object(addon):
     """Grease pencil: Stroke Order; a mesh: Refine (both inputs of the Shape Deform modifier)."""
     shapedeform = addon.shapedeform_addon
