@@ -125,6 +125,7 @@ def on_depsgraph_update(scene, depsgraph):
         handles.settle_duplicate(obj)
         if rig_format.is_owner(obj) and update.is_updated_transform and obj.library is None:
             handles.keep_in_rig_space(obj)  # after Apply Transform or Set Origin
+            handles.fit_pin_shapes(obj)  # its scale is its pins' too
         if rig_format.is_owner(obj) and rig.stale(obj):  # a setting driven or keyed, edited
             moved[obj.name] = obj
         owner = handles.rig_of(obj)

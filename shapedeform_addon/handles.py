@@ -230,7 +230,6 @@ def _add_pin(obj, rig, point, kind):
     collection(obj).objects.link(empty)
     empty.shapedeform.rig = obj
     empty.shapedeform.pin_kind = kind
-    empty.empty_display_size = empty.shapedeform.extent * rig.graph.size
     empty.parent = obj.shapedeform.cage
     empty.parent_type = "VERTEX"
     empty.parent_vertices = (point, 0, 0)
@@ -240,8 +239,40 @@ def _add_pin(obj, rig, point, kind):
     item[rig_format.PIN_POINT] = point
     set_active(obj.shapedeform, len(obj.shapedeform.handles) - 1)
     rig_format.keep_handles_evaluated(obj)
+    fit_pin_shapes(obj, rig)
     rigs.invalidate(obj)
     return empty
+
+
+def fit_pin_shapes(obj, rig=None):
+    """Size the sphere or cube of each pin of owner ``obj``'s rig to show its extent on the
+    shape as the viewport shows it, the object's scale included (riding on a cage point, a pin's
+    Empty takes none of it).
+
+    Parameters
+    ----------
+    obj : bpy.types.Object
+        A rig owner.
+    rig : rig.Rig, optional
+        Its rig, when the caller has it (by default the cached one, built if missing; a rig
+        that cannot be built is left as it is: posing it says why).
+    """
+    pins = [item.object for item in obj.shapedeform.handles if rig_format.present(item.object)
+            and item.object.shapedeform.pin_kind != "POSITION" and item.object.library is None]
+    if not pins:
+        return
+    try:
+        rig = rig if rig is not None else rigs.get(obj)
+    except RigError:
+        return
+    in_plane = rig_format.rig_space(obj)[:3, :3] @ rig.plane.axes[:2].T
+    # The geometric mean of the two scales in the plane: one size for a sphere, which a scale
+    # not the same along both axes stretches into no sphere.
+    size = rig.graph.size * max(np.linalg.det(in_plane.T @ in_plane), 0.0) ** 0.25
+    for pin in pins:
+        wanted = pin.shapedeform.extent * size
+        if not np.isclose(pin.empty_display_size, wanted, rtol=1e-6):  # a write evaluates again
+            pin.empty_display_size = wanted
 
 
 def adopt_duplicated(obj):

@@ -10,7 +10,7 @@ from functools import partial
 import bpy
 from bpy import props
 
-from . import rig
+from . import handles, rig
 
 
 def _overridable(kind):
@@ -68,9 +68,8 @@ def _pin_reach_changed(self, context):
     owner = self.rig
     if owner is not None and owner.shapedeform.is_bound:
         rig.invalidate(owner)
-        if not rig.pose_safely(owner, context.evaluated_depsgraph_get()) and self.pin_kind != "POSITION":
-            # Its sphere or cube shows the extent, as it did when the pin was added.
-            self.id_data.empty_display_size = self.extent * rig.get(owner).graph.size
+        rig.pose_safely(owner, context.evaluated_depsgraph_get())
+        handles.fit_pin_shapes(owner)
 
 
 # Rig state and bind-time choices: keying them would animate nothing (or break the rig), so they

@@ -223,3 +223,29 @@ def test_pins_added_at_a_selection_copied_or_off_the_shape(addon, capsys, kind):
     with pytest.raises(RuntimeError, match="not in the handle list of its rig \\(a copy of a handle\\?\\)"):
         bpy.ops.shapedeform.remove_handle()
     assert len(obj.shapedeform.handles) == count
+
+
+@pytest.mark.parametrize("kind", ["OVERLAP", "STARCH"])
+def test_a_pins_shape_shows_its_extent_in_the_world_on_a_scaled_object(addon, kind):
+    """A pin's sphere or cube is as big as its extent on the shape as the viewport shows it: on
+    an object scaled 2 it was half that (a pin rides on a cage point and takes none of its
+    scale), and it follows a change of the object's scale."""
+    obj, _ = bar()
+    obj.scale = (2.0, 2.0, 2.0)
+    bpy.context.view_layer.update()
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.add_handle(location=(0.0, 0.0, 0.0), kind=kind) == {"FINISHED"}
+    pin = obj.shapedeform.handles[-1].object
+    bpy.context.view_layer.update()
+
+    def shown_over_reach():
+        world = checks.mesh_points(obj) * np.array(obj.scale)
+        size = np.linalg.norm(np.ptp(world, axis=0)[:2])  # the shape's size, as the graph measures it
+        return pin.empty_display_size * max(pin.matrix_world.to_scale()) / (pin.shapedeform.extent * size)
+
+    assert shown_over_reach() == pytest.approx(1.0, rel=0.02)
+    pin.shapedeform.extent = 0.5
+    assert shown_over_reach() == pytest.approx(1.0, rel=0.02)
+    obj.scale = (3.0, 3.0, 3.0)
+    bpy.context.view_layer.update()
+    assert shown_over_reach() == pytest.approx(1.0, rel=0.02)
