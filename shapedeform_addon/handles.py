@@ -456,12 +456,12 @@ def release_follower(obj):
     if is_own_cage(obj, settings.cage):  # its own (follow), sharing the rig's mesh
         bpy.data.objects.remove(settings.cage)
     settings.handles.clear()
-    rig_format.keep_handles_evaluated(obj)
     settings.handle_collection = None
     quad, settings.original_data = settings.original_data, None
     if quad is not None and quad.users == 0:  # the quad copy made for it (image_plane.own_quad)
         bpy.data.meshes.remove(quad)
     rig_format.forget(obj)
+    rig_format.keep_handles_evaluated(obj)  # unbound now: its driver goes
 
 
 def locked_by_override(obj):

@@ -110,6 +110,7 @@ def test_a_duplicate_follows_the_rig_and_unbinding_it_leaves_the_original_alone(
 
     unbind(copy)
     assert not copy.shapedeform.is_bound and len(copy.shapedeform.handles) == 0 and not copy.modifiers
+    assert copy.animation_data is None  # nor the driver that kept the rig's handles evaluated
     assert checks.evaluated_mesh_points(copy).tobytes() == rest.tobytes()
     # The original keeps its handles, cage, collection and a working rig.
     assert {o.name for o in bpy.data.objects} == names | {copy.name}
@@ -120,6 +121,7 @@ def test_a_duplicate_follows_the_rig_and_unbinding_it_leaves_the_original_alone(
 
     # Unbinding the original afterwards still removes its own handles, cage and collection.
     unbind(original)
+    assert original.animation_data is None
     assert {o.name for o in bpy.data.objects} == {original.name, copy.name}
     assert not any("Handles" in c.name for c in bpy.data.collections)
     assert checks.mesh_points(original).tobytes() == rest.tobytes()
