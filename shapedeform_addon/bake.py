@@ -147,6 +147,20 @@ def frame_list(frame_start, frame_end, step=1):
     return frames if frames[-1] == frame_end else frames + [frame_end]
 
 
+def _may_follow_others(obj):
+    """Whether a handle of ``obj``'s rig may follow another object's shape: something on its
+    way up to the owner (itself included) has constraints or drivers, or is not an Empty (a
+    bone, a vertex parent). Handles keyed or moved by hand follow nothing."""
+    for item in obj.shapedeform.handles:
+        link = item.object
+        while link is not None and link != obj:
+            drivers = link.animation_data.drivers if link.animation_data is not None else ()
+            if link.constraints or len(drivers) or link.type != "EMPTY":
+                return True
+            link = link.parent
+    return False
+
+
 class Bake:
     """A bake in progress, one frame per :meth:`step`, written by :meth:`finish`.
 
@@ -200,9 +214,10 @@ class Bake:
             raise RigError("Nothing to bake: the frame range is empty")
         self.step_size = int(step)
         # The live rigs this bake leaves live: the paused handlers do not pose them, so the bake
-        # does, on every frame, for the baked rigs whose handles may follow their shapes.
+        # does, on every frame, where a baked rig's handles may follow their shapes.
         self.live = [obj for obj in rig_format.owners(self.scene, depsgraph) if obj not in self.objects
-                     and obj.shapedeform.handles and not rig_format.is_baked(obj)]
+                     and obj.shapedeform.handles and not rig_format.is_baked(obj)
+                     ] if any(_may_follow_others(obj) for obj in self.objects) else []
         self.captured = {obj.name: [] for obj in self.objects}
         self.times = []  # the animation time each frame showed
         self.done = 0

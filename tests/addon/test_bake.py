@@ -362,6 +362,20 @@ def test_baking_only_the_rig_that_follows_another_live_rig_poses_that_rig_on_eve
     assert max(errors.values()) < 1e-5, f"baked B off its live pose, per frame: {errors}"
 
 
+def test_baking_a_rig_whose_handles_follow_nothing_solves_no_other_rig(addon, monkeypatch):
+    """The head baked alone (its handles keyed, following nothing): the hat that follows it stays
+    live and is not solved on each of the bake's frames, which it cannot change."""
+    first, second, expected = hat_on_a_head()
+    shapedeform = addon.shapedeform_addon
+    solved = []
+    pose_safely = shapedeform.rig.pose_safely
+    monkeypatch.setattr(shapedeform.rig, "pose_safely", lambda obj, *args, **kwargs: (
+        solved.append(obj.name), pose_safely(obj, *args, **kwargs))[1])
+    with shapedeform.handlers.paused():
+        assert shapedeform.bake.bake_objects([first], 1, 6) == [first]
+    assert second.name not in solved and "baked" not in second.shapedeform
+
+
 def test_a_bake_pushed_down_to_the_nla_is_replaced_and_cleared_with_its_action(addon):
     """README: the bake's keys push to the NLA as any keys do. Pushed down, the bake plays;
     baking again and Clear Bake remove its action (it was left behind with no user, one more
