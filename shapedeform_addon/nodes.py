@@ -213,9 +213,9 @@ def _interface(group):
     order = group.interface.new_socket(ORDER_INPUT, in_out="INPUT", socket_type="NodeSocketBool")
     order.description = ("Grease pencil: in each layer, draw the strokes lying on a part the pose folds over "
                          "another after the others, which keep their order. While a stroke is moved, each layer "
-                         "draws as layers of its name and settings, with no layer groups and only the current "
-                         "frame's drawing, keyed at frame 0 (onion skins and drawings before frame 0 vanish). "
-                         "Bind turns it on where the drawing uses none of these")
+                         "draws as layers of its name and settings, in no layer group, with only the current "
+                         "frame's drawing, keyed at frame 0 (onion skins and drawings before frame 0 vanish, "
+                         "masks find one of the copies). Bind turns it on where renders lose nothing by it")
     order.default_value = False
     group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
 

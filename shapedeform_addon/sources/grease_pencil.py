@@ -77,30 +77,32 @@ def _values(drawing, name, count, dtype, default):
 
 
 def stroke_order_losses(obj):
-    """What the modifier's Stroke Order would drop from ``obj``'s layers while the pose folds
+    """What the modifier's Stroke Order would change in renders of ``obj`` while the pose folds
     the shape over itself, as phrases for a message (empty when nothing shows).
 
     While a stroke lies over or under a fold, Stroke Order draws each layer as up to three
     layers with its name and settings (lighting, blend mode, opacity, tint, transform, parent,
     view-layer filter and pass index are kept): Sort Elements does not sort grease-pencil
-    strokes. Those layers have no groups (a later modifier filtered by a layer group finds
-    none), and hold the current frame's drawing alone, keyed at frame 0: onion skins of other
-    keyframes vanish, a Build modifier after the rig's, which times strokes from their keyframe,
-    draws nothing, a Noise modifier's Random re-seeds, and a drawing keyed before frame 0
-    vanishes. A mask names its layers, and would find one of the three.
+    strokes. Those layers are in no layer group, and hold the current frame's drawing alone,
+    keyed at frame 0. So a later modifier filtered by a layer group finds none, a Build modifier
+    after the rig's, which times strokes from their keyframe, draws nothing, a Noise modifier's
+    Random re-seeds, a drawing keyed before frame 0 vanishes, and a mask, which names its
+    layers, finds one of the three. (The viewport's onion skins of other keyframes vanish too
+    while a stroke lies on a fold; renders have none. Hidden layers and groups are left out
+    before any modifier.)
     """
     layers = list(obj.data.layers)
     stack, ours = list(obj.modifiers), modifiers_of(obj)
-    # Build times strokes from their keyframe; Noise's Random re-seeds every few frames counted
-    # from it (at rest it moved points 0.05 on a drawing 3 tall).
-    later = [m for m in stack[stack.index(ours[0]) + 1:]
-             if m.type == "GREASE_PENCIL_BUILD" or (m.type == "GREASE_PENCIL_NOISE" and m.use_random)] if ours else []
+    later = stack[stack.index(ours[0]) + 1:] if ours else []
     checks = (
-        ("onion skins of", [layer for layer in layers if layer.use_onion_skinning and len(layer.frames) > 1]),
         ("masks of", [layer for layer in layers if layer.use_masks and len(layer.mask_layers)]),
-        ("layer groups of", [layer for layer in layers if layer.parent_group is not None]),
         ("drawings before frame 0 of", [layer for layer in layers if any(f.frame_number < 0 for f in layer.frames)]),
-        ("the keyframe timing read by", later),
+        # Build times strokes from their keyframe; Noise's Random re-seeds every few frames
+        # counted from it (at rest it moved points 0.05 on a drawing 3 tall).
+        ("the keyframe timing read by", [m for m in later if m.type == "GREASE_PENCIL_BUILD"
+                                         or (m.type == "GREASE_PENCIL_NOISE" and m.use_random)]),
+        ("the layer group filtering", [m for m in later if getattr(m, "use_layer_group_filter", False)
+                                       and getattr(m, "tree_node_filter", "")]),
     )
     return [f"{what} " + ", ".join(f"'{item.name}'" for item in found) for what, found in checks if found]
 

@@ -433,9 +433,10 @@ def monkey_seen_from_the_front():
 
 
 def test_bind_turns_stroke_order_on_where_the_drawing_loses_nothing_by_it(addon):
-    """Stroke Order keeps a layer's settings (lighting, blend mode, view-layer filter, parent):
-    bind turns it on unless a layer is masked, in a layer group, keyed before frame 0 or has
-    keyframes to show as onion skins, and the sidebar says what it drops."""
+    """Stroke Order keeps a layer's settings (lighting, blend mode, view-layer filter, parent),
+    and renders have no onion skins: bind turns it on unless a layer is masked or keyed before
+    frame 0, or a modifier after the rig's reads keyframe timing or filters by layer group, and
+    the sidebar says what it drops."""
     losses = addon.shapedeform_addon.sources.grease_pencil.stroke_order_losses
 
     def bound(setup):
@@ -450,6 +451,7 @@ def test_bind_turns_stroke_order_on_where_the_drawing_loses_nothing_by_it(addon)
         lines.blend_mode = "MULTIPLY"
         lines.viewlayer_render = bpy.context.view_layer.name
         lines.parent = bpy.data.objects.new("Parent", None)
+        lines.frames.copy(lines.frames[0].frame_number, 5)  # a second keyframe, shown as an onion skin
 
     assert bound(lambda obj, fills, lines: None) == ([], True)  # Blender's default, lit
     assert bound(settings) == ([], True)
@@ -459,22 +461,24 @@ def test_bind_turns_stroke_order_on_where_the_drawing_loses_nothing_by_it(addon)
         assert bpy.ops.grease_pencil.layer_mask_add(name=lines.name) == {"FINISHED"}  # mask_layers.add: 5.2 on
         fills.use_masks = True
 
-    def animated(obj, fills, lines):
-        lines.frames.copy(lines.frames[0].frame_number, 5)  # a second keyframe, shown as an onion skin
-
-    assert bound(masked) == (["masks of 'Fills'"], False)
-    assert bound(animated) == (["onion skins of 'Lines'"], False)
-
-    def grouped(obj, fills, lines):  # a later modifier filtered by the group would find none
-        obj.data.layers.move_to_layer_group(lines, obj.data.layer_groups.new("Outlines"))
-
     def early(obj, fills, lines):  # rebuilt drawings are keyed at frame 0: before it, nothing
         for layer in (fills, lines):
             layer.frames.move(layer.frames[0].frame_number, -20)
 
-    if hasattr(bpy.types.GreasePencilv3Layers, "move_to_layer_group"):  # 4.5's Python cannot group a layer
-        assert bound(grouped) == (["layer groups of 'Lines'"], False)
+    assert bound(masked) == (["masks of 'Fills'"], False)
     assert bound(early) == (["drawings before frame 0 of 'Fills', 'Lines'"], False)
+
+    if hasattr(bpy.types.GreasePencilv3Layers, "move_to_layer_group"):  # 4.5's Python cannot group a layer
+        def grouped(obj, fills, lines):  # a layer group alone draws the same
+            obj.data.layers.move_to_layer_group(lines, obj.data.layer_groups.new("Outlines"))
+
+        def filtered(obj, fills, lines):  # a later modifier filtered by the group would find none
+            grouped(obj, fills, lines)
+            tint = obj.modifiers.new("Tint", "GREASE_PENCIL_TINT")
+            tint.tree_node_filter, tint.use_layer_group_filter = "Outlines", True
+
+        assert bound(grouped) == ([], True)
+        assert bound(filtered) == (["the layer group filtering 'Tint'"], False)
 
 
 def test_stroke_order_keeps_each_layers_settings_and_waits_for_a_fold(addon, tmp_path):

@@ -164,16 +164,15 @@ def test_panel_shows_the_modifier_option_for_the_kind_of_object(addon):
         modifier = shapedeform.rig_format.modifiers_of(obj)[0]
         identifier = shapedeform.nodes.input_identifiers(modifier.node_group)[name]
         assert shapedeform.compat.modifier_input_property(modifier, identifier)[1] in drawn(bpy.context)
-    # A second keyframe shown as an onion skin: Stroke Order would drop it while a pose folds.
+    # A Build modifier after the rig's: Stroke Order would drop its timing while a pose folds.
     bpy.context.view_layer.objects.active = monkey
-    lines = monkey.data.layers["Lines"]
-    lines.frames.copy(lines.frames[0].frame_number, 5)
+    monkey.modifiers.new("Build", "GREASE_PENCIL_BUILD")
     modifier = shapedeform.rig_format.modifiers_of(monkey)[0]
     order = shapedeform.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
-    assert shapedeform.compat.modifier_input(modifier, order) is True  # bound before the keyframe
-    assert "Drops onion skins of 'Lines' while a pose folds" in drawn(bpy.context, labels=True)
+    assert shapedeform.compat.modifier_input(modifier, order) is True  # bound before the Build
+    assert "Drops the keyframe timing read by 'Build' while a pose folds" in drawn(bpy.context, labels=True)
     shapedeform.compat.set_modifier_input(modifier, order, False)
-    assert "Would drop onion skins of 'Lines' while a pose folds" in drawn(bpy.context, labels=True)
+    assert "Would drop the keyframe timing read by 'Build' while a pose folds" in drawn(bpy.context, labels=True)
 
 
 def test_a_handle_left_by_a_deleted_object_offers_unbind_and_says_why(addon):
