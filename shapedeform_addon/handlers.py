@@ -123,6 +123,8 @@ def on_depsgraph_update(scene, depsgraph):
             continue
         obj = update.id.original
         handles.settle_duplicate(obj)
+        if obj.library is None and (obj.shapedeform.is_bound or rig_format.watches_handles(obj)):
+            rig_format.keep_handles_evaluated(obj)  # a handle deleted, the animation data replaced
         if rig_format.is_owner(obj) and update.is_updated_transform and obj.library is None:
             handles.keep_in_rig_space(obj)  # after Apply Transform or Set Origin
             handles.fit_pin_shapes(obj)  # its scale is its pins' too
@@ -210,7 +212,8 @@ def sync_scene():
         handles.settle_duplicate(obj)
         if rig_format.is_owner(obj):
             handles.keep_in_collection(obj)
-            rig_format.keep_handles_evaluated(obj)  # a file from before the driver
+        if obj.shapedeform.is_bound or rig_format.watches_handles(obj):
+            rig_format.keep_handles_evaluated(obj)  # a file from before the driver, the extension enabled again
     scene = bpy.context.scene
     if scene is not None:
         depsgraph = bpy.context.evaluated_depsgraph_get()

@@ -100,8 +100,10 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
     active_handle: IntProperty(name="Active Handle", description="The handle the sidebar's list has picked",
                                default=0, min=0, options=NOT_KEYABLE, update=_handle_picked)
     handle_collection: PointerProperty(type=bpy.types.Collection, name="Handle Collection",
-                                       description="The collection holding the rig's handles, through which its "
-                                       "modifier has Blender evaluate them")
+                                       description="The collection holding the rig's handles, pins and cage")
+    handles_watched: FloatProperty(
+        name="Handles Watched", description="Driven by the rig's handles and pins, so Blender evaluates them "
+                                            "wherever this object is evaluated; its value is not used")
     original_data: PointerProperty(type=bpy.types.Mesh, name="Original Mesh",
                                    description="An image plane's quad, given back on unbind")
     rig: PointerProperty(type=bpy.types.Object, name="Rig",

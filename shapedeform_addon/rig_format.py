@@ -58,9 +58,12 @@ HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
 CAGE_STAMP = "shapedeform_cage"  # on a cage's mesh: the owner's cage object it belongs to
 UNSETTLED = "shapedeform_unsettled"  # on a cage's mesh: its pose is a Viewport solve that stopped short
-# On a rig's owner and followers: a driver reading its handles' transforms and its pins'
-# keyable amounts ("_": the interface does not list it), :func:`keep_handles_evaluated`.
-HANDLES_WATCHED = "_shapedeform_handles"
+# On a rig's owner and followers: the setting a driver reading its handles' transforms and its
+# pins' keyable amounts writes (:func:`keep_handles_evaluated`); inside the extension's settings,
+# where keying an object's custom properties (I) does not reach. And whether the driver made the
+# object's animation data (Unbind then removes it).
+HANDLES_WATCHED = "shapedeform.handles_watched"
+ANIMATION_MADE = "animation_data_made"
 _PIN_SETTINGS = {"OVERLAP": ("in_front", "extent"), "STARCH": ("stiffness", "extent")}
 # Kept by older versions, which wrote poses into the object's own data: read only to give the
 # rest shape back (``restore_legacy`` of each source), dropped on unbind.
@@ -146,7 +149,8 @@ def pin_items(obj, kind):
 def keep_handles_evaluated(obj):
     """Have Blender evaluate the handles and pins of ``obj``'s rig (``obj`` its owner or a
     follower) wherever ``obj`` is evaluated: their transforms and the pins' keyable amounts;
-    True when something changed.
+    remove the driver that does it from an object that is neither (unbound, or given another
+    object's animation data). True when something changed.
 
     A driver on the object reads each handle's transform and each pin's amounts, which makes
     them the object's dependencies: Blender then evaluates their animation with the object's,
@@ -155,11 +159,13 @@ def keep_handles_evaluated(obj):
     and the object's geometry does not depend on it, so a handle's move evaluates the object
     once, after the rig wrote the new pose (the modifier's Handles input, which did this before,
     evaluated it before that as well: 45 ms per move of a 200,000-vertex plane against 26).
-    A library's rig keeps what its file made.
+    The driver is made again where it no longer fits (a handle deleted, the animation data
+    replaced, the extension disabled and enabled, which marks it invalid). A library's rig
+    keeps what its file made.
     """
     if obj.library is not None or obj.override_library is not None:
         return False
-    owner = owner_of(obj)
+    owner = obj if is_owner(obj) else owner_of(obj) if is_follower(obj) else None
     wanted = []
     for item in (owner.shapedeform.handles if owner is not None else ()):
         handle = item.object
@@ -168,22 +174,23 @@ def keep_handles_evaluated(obj):
         elif present(handle):
             wanted.extend((handle, "SINGLE_PROP", f"shapedeform.{name}")
                           for name in _PIN_SETTINGS[handle.shapedeform.pin_kind])
-    path = f'["{HANDLES_WATCHED}"]'
     animation = obj.animation_data
-    fcurve = animation.drivers.find(path) if animation is not None else None
+    fcurve = animation.drivers.find(HANDLES_WATCHED) if animation is not None else None
     if fcurve is not None:
-        if [(v.targets[0].id, v.type, v.targets[0].data_path) for v in fcurve.driver.variables] == wanted:
+        if fcurve.driver.is_valid and wanted == [(v.targets[0].id, v.type, v.targets[0].data_path)
+                                                 for v in fcurve.driver.variables]:
             return False
         animation.drivers.remove(fcurve)
     elif not wanted:
         return False
     if not wanted:
-        obj.pop(HANDLES_WATCHED, None)
-        if animation.action is None and not animation.drivers and not animation.nla_tracks:
+        if obj.shapedeform.pop(ANIMATION_MADE, False) and animation.action is None and not animation.drivers \
+                and not animation.nla_tracks:
             obj.animation_data_clear()
         return True
-    obj[HANDLES_WATCHED] = 0.0
-    driver = obj.driver_add(path).driver
+    if animation is None:
+        obj.shapedeform[ANIMATION_MADE] = True
+    driver = obj.driver_add(HANDLES_WATCHED).driver
     driver.type = "SUM"
     for i, (handle, kind, data_path) in enumerate(wanted):
         variable = driver.variables.new()
@@ -195,6 +202,11 @@ def keep_handles_evaluated(obj):
         else:
             target.data_path = data_path
     return True
+
+
+def watches_handles(obj):
+    """Whether ``obj`` has the driver :func:`keep_handles_evaluated` makes."""
+    return obj.animation_data is not None and obj.animation_data.drivers.find(HANDLES_WATCHED) is not None
 
 
 # -- the cage and the modifier ----------------------------------------------------------------

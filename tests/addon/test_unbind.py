@@ -348,7 +348,7 @@ def test_a_set_duplicated_with_its_follower_follows_the_copied_rig(addon):
     copied_follower = next(o for o in copies if o.type == "MESH" and o != owner)
     assert addon.shapedeform_addon.rig_format.owner_of(copied_follower) == owner
     shapedeform = addon.shapedeform_addon
-    watched = copied_follower.animation_data.drivers.find(f'["{shapedeform.rig_format.HANDLES_WATCHED}"]')
+    watched = copied_follower.animation_data.drivers.find(shapedeform.rig_format.HANDLES_WATCHED)
     assert [v.targets[0].id for v in watched.driver.variables] == [i.object for i in owner.shapedeform.handles]
     handle = owner.shapedeform.handles[-1].object
     before = checks.evaluated_mesh_points(copied_follower).copy()
