@@ -49,7 +49,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 14
+VERSION = 15
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -471,7 +471,17 @@ def _stroke_order(b, cage, moved, enabled, selection):
     beneath = b.node("ShaderNodeMath", [highest, height], operation="SUBTRACT").outputs[0]
     lower = b.node("FunctionNodeCompare", {"A": beneath, "B": margin}, data_type="FLOAT",
                    operation="GREATER_THAN").outputs[0]
+    # Only a part sent behind its plane (an overlap pin below 0; the automatic order lifts, it
+    # never lowers) goes under: an eye or a hole drawn on the body, covered by an arm folded
+    # over it, stays on the body (drawn before it, the body covered it whole).
+    rest_point = b.node("GeometryNodeSampleIndex", {"Geometry": cage.rest, "Value": position, "Index": 0},
+                        data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
+    plane = b.node("ShaderNodeVectorMath", [rest_point, normal], operation="DOT_PRODUCT").outputs["Value"]
+    sunk = b.node("ShaderNodeMath", [plane, height], operation="SUBTRACT").outputs[0]
+    behind = b.node("FunctionNodeCompare", {"A": sunk, "B": margin}, data_type="FLOAT",
+                    operation="GREATER_THAN").outputs[0]
     under_fold = b.node("FunctionNodeBooleanMath", [from_front.outputs["Is Hit"], lower], operation="AND").outputs[0]
+    under_fold = b.node("FunctionNodeBooleanMath", [under_fold, behind], operation="AND").outputs[0]
     under_fold = b.node("FunctionNodeBooleanMath", [under_fold, selection], operation="AND").outputs[0]
     sort_weight = b.node("ShaderNodeMath", [_stroke_share(b, over_fold), _stroke_share(b, under_fold)],
                          operation="SUBTRACT").outputs[0]

@@ -313,6 +313,24 @@ def test_grease_pencil_strokes_over_a_fold_draw_after_the_rest(addon):
     assert list(drawn_order(figure, "Fills")) == [body, arm, eye]
 
 
+def test_an_eye_mostly_under_a_folded_arm_stays_on_the_body(addon, tmp_path):
+    """The arm folded over most of the eye drawn on the body: the eye is under a fold, but on the
+    body, which has not sunk behind its plane; it stays drawn after the body, and its part the
+    arm leaves uncovered shows (drawn first, under every other stroke, the body hid it whole:
+    no white pixel; so did a hole cut in the body)."""
+    figure, tip = figure_seen_from_the_front()
+    number_strokes(figure)
+    tip.location.x -= 2.0
+    tip.location.z -= 0.2
+    bpy.context.view_layer.update()
+    body, arm, eye = range(3)
+    assert list(drawn_order(figure, "Fills")) == [body, eye, arm]
+    on = renders.render(tmp_path / "on.png", size=100)
+    set_stroke_order(addon, figure, False)
+    off = renders.render(tmp_path / "off.png", size=100)
+    assert 20 < eye_white(on) < 0.5 * eye_white(off), (eye_white(on), eye_white(off))  # partly covered
+
+
 def test_stroke_order_leaves_the_layers_the_rig_does_not_deform_alone(addon):
     """Only "Fills" rigged: the unrigged layer's card and the sticker drawn on it keep their
     order while the arm folds over the body (lying at rest under the lifted cage, both counted

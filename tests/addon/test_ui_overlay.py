@@ -211,5 +211,25 @@ def test_a_build_modifier_after_the_rig_is_named_among_what_stroke_order_drops(a
     # rest moved its points 0.05 on a drawing 3 tall).
     noise = monkey.modifiers.new("Noise", "GREASE_PENCIL_NOISE")
     assert grease_pencil.stroke_order_losses(monkey) == ["the keyframe timing read by 'Noise'"]
+    # Seeds and offsets counted by stroke or layer change while a pose folds (QA: Offset by layer
+    # moved the body 0.10, by stroke 0.05; Noise's seed the eye 0.006): named too.
     noise.use_random = False
-    assert grease_pencil.stroke_order_losses(monkey) == []
+    assert grease_pencil.stroke_order_losses(monkey) == ["the layer and stroke order read by 'Noise'"]
+    monkey.modifiers.remove(noise)
+    offset = monkey.modifiers.new("Offset", "GREASE_PENCIL_OFFSET")
+    for mode, named in (("LAYER", True), ("STROKE", True), ("RANDOM", True), ("MATERIAL", False)):
+        offset.offset_mode = mode
+        assert grease_pencil.stroke_order_losses(monkey) == (
+            ["the layer and stroke order read by 'Offset'"] if named else []), mode
+    monkey.modifiers.remove(offset)
+    # A modifier pinned last comes after the rig's: seen before Bind adds the rig's (which
+    # turned Stroke Order on under a Build pinned last).
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    late = bpy.context.active_object
+    build = late.modifiers.new("Build", "GREASE_PENCIL_BUILD")
+    build.use_pin_to_last = True
+    assert grease_pencil.stroke_order_losses(late) == ["the keyframe timing read by 'Build'"]
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    modifier = addon.shapedeform_addon.rig_format.modifiers_of(late)[0]
+    order = addon.shapedeform_addon.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
+    assert addon.shapedeform_addon.compat.modifier_input(modifier, order) is False
