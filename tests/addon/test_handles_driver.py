@@ -556,6 +556,11 @@ def test_handle_parented_to_a_bone_of_a_hidden_armature(addon, hide, quiet):
 
 @pytest.mark.parametrize("extra", ["follower", "pins", "excluded"])
 def test_a_handle_move_evaluates_once(addon, extra):
+    """Moving a handle evaluates the rigged object (and a copy following it) once, after the rig
+    wrote the new pose, in the second pass Blender makes without callbacks for what the rig's
+    handler wrote; not also in the pass that moved the handle (the modifier's Handles input made
+    the handles its dependencies, so it was evaluated with the old pose first: 45 ms per move of
+    a 200,000-vertex plane against 26)."""
     obj, left, right = rig_with_two_handles()
     watch = [obj]
     if extra == "follower":

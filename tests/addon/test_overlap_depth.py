@@ -325,9 +325,7 @@ def test_an_eye_mostly_under_a_folded_arm_stays_on_the_body(addon, tmp_path):
     bpy.context.view_layer.update()
     body, arm, eye = range(3)
     assert list(drawn_order(figure, "Fills")) == [body, eye, arm]
-    on = renders.render(tmp_path / "on.png", size=100)
-    set_stroke_order(addon, figure, False)
-    off = renders.render(tmp_path / "off.png", size=100)
+    on, off = rendered_with_and_without_order(addon, figure, tmp_path)
     assert 20 < eye_white(on) < 0.5 * eye_white(off), (eye_white(on), eye_white(off))  # partly covered
 
 
@@ -526,9 +524,7 @@ def test_stroke_order_keeps_each_layers_settings_and_waits_for_a_fold(addon, tmp
     bpy.context.view_layer.update()
     body, arm, eye = range(3)
     assert list(drawn_order(obj, "Fills")) == [body, eye, arm]
-    on = renders.render(tmp_path / "on.png", size=100)
-    set_stroke_order(addon, obj, False)
-    off = renders.render(tmp_path / "off.png", size=100)
+    on, off = rendered_with_and_without_order(addon, obj, tmp_path)
     assert arm_blue(on) > arm_blue(off) + 10, (arm_blue(off), arm_blue(on))
     eye = off[..., :3].min(axis=2) > 0.8  # the eye, drawn over the arm, and its antialiased rim:
     eye |= np.roll(eye, 1, 0) | np.roll(eye, -1, 0) | np.roll(eye, 1, 1) | np.roll(eye, -1, 1)
@@ -556,6 +552,13 @@ def stroke_order_input(addon, obj):
 def set_stroke_order(addon, obj, on):
     addon.shapedeform_addon.compat.set_modifier_input(*stroke_order_input(addon, obj), on)
     obj.update_tag()
+
+
+def rendered_with_and_without_order(addon, obj, tmp_path):
+    """Renders (100 x 100) of ``obj`` as it is, then with Stroke Order turned off."""
+    on = renders.render(tmp_path / "on.png", size=100)
+    set_stroke_order(addon, obj, False)
+    return on, renders.render(tmp_path / "off.png", size=100)
 
 
 def eye_white(pixels):
