@@ -69,9 +69,10 @@ def _remove_keys(cage):
     if key is None:
         return 0
     animation = key.animation_data
-    # Pushed down (or stashed), the bake's action is a strip's, no longer the active one.
+    # Pushed down (or stashed), the bake's action is a strip's, no longer the active one; a
+    # meta strip holds strips of its own.
     actions = [] if animation is None else [animation.action] + [
-        strip.action for track in animation.nla_tracks for strip in track.strips]
+        strip.action for track in animation.nla_tracks for strip in _strips(track.strips)]
     removed = sum(1 for b in key.key_blocks if b.name.startswith(PREFIX))
     uid = key.session_uid
     cage.shape_key_clear()
@@ -84,6 +85,13 @@ def _remove_keys(cage):
     bpy.data.batch_remove({action for action in actions
                            if action is not None and action.get(MARK) and action.users == 0})
     return removed
+
+
+def _strips(strips):
+    """Every strip of ``strips``, those inside meta strips included."""
+    for strip in strips:
+        yield strip
+        yield from _strips(strip.strips)
 
 
 def _write_keys(cage, frames, captured, times):
@@ -149,13 +157,16 @@ def frame_list(frame_start, frame_end, step=1):
 
 def _may_follow_others(obj):
     """Whether a handle of ``obj``'s rig may follow another object's shape: something on its
-    way up to the owner (itself included) has constraints or drivers, or is not an Empty (a
-    bone, a vertex parent). Handles keyed or moved by hand follow nothing."""
+    way up to the rig (the owner or its cage, a pin's parent) has drivers, a constraint aimed
+    at another object, or is not an Empty (a bone, a vertex parent). Handles keyed or moved by
+    hand, pins, and a curve's handles following it along its path follow nothing else."""
+    own = {obj, obj.shapedeform.cage}
     for item in obj.shapedeform.handles:
         link = item.object
-        while link is not None and link != obj:
+        while link is not None and link not in own:
             drivers = link.animation_data.drivers if link.animation_data is not None else ()
-            if link.constraints or len(drivers) or link.type != "EMPTY":
+            aimed = [c for c in link.constraints if getattr(c, "target", None) not in (None, *own)]
+            if aimed or len(drivers) or link.type != "EMPTY":
                 return True
             link = link.parent
     return False

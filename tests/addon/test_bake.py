@@ -362,11 +362,17 @@ def test_baking_only_the_rig_that_follows_another_live_rig_poses_that_rig_on_eve
     assert max(errors.values()) < 1e-5, f"baked B off its live pose, per frame: {errors}"
 
 
-def test_baking_a_rig_whose_handles_follow_nothing_solves_no_other_rig(addon, monkeypatch):
-    """The head baked alone (its handles keyed, following nothing): the hat that follows it stays
-    live and is not solved on each of the bake's frames, which it cannot change."""
+@pytest.mark.parametrize("pin", [None, "OVERLAP", "STARCH"])
+def test_baking_a_rig_whose_handles_follow_nothing_solves_no_other_rig(addon, monkeypatch, pin):
+    """The head baked alone (its handles keyed, following nothing; a pin rides on its own cage):
+    the hat that follows it stays live and is not solved on each of the bake's frames, which it
+    cannot change (a pin's cage parent counted as following another shape: 5 rigs, one baked,
+    40 ms per frame against 8.5)."""
     first, second, expected = hat_on_a_head()
     shapedeform = addon.shapedeform_addon
+    if pin is not None:
+        checks.select_only(first)
+        assert bpy.ops.shapedeform.add_handle(location=checks.world(first, [0.0, 0.0, 0.0]), kind=pin) == {"FINISHED"}
     solved = []
     pose_safely = shapedeform.rig.pose_safely
     monkeypatch.setattr(shapedeform.rig, "pose_safely", lambda obj, *args, **kwargs: (
@@ -407,6 +413,30 @@ def test_a_bake_pushed_down_to_the_nla_is_replaced_and_cleared_with_its_action(a
     bake.bake_objects([obj], 1, 6)
     scene.frame_set(3)
     np.testing.assert_allclose(checks.evaluated_mesh_points(obj), expected[3], atol=1e-5)
+    # Pushed down and grouped into a meta strip with another (Shift+G in the NLA editor): the
+    # strips inside it are searched too.
+    push_down()
+    track = obj.shapedeform.cage.data.shape_keys.animation_data.nla_tracks[-1]
+    action = track.strips[0].action
+    track.strips.new(action.name + " 2", int(track.strips[0].frame_end) + 1, action)
+    for strip in track.strips:
+        strip.select = True
+    track.select = True
+    window = bpy.context.window
+    area = window.screen.areas[0]
+    kind, area.type = area.type, "NLA_EDITOR"
+    area.spaces.active.dopesheet.show_only_selected = False
+    area.spaces.active.dopesheet.show_hidden = True  # the cage is hidden
+    try:
+        with bpy.context.temp_override(window=window, area=area, region=area.regions[-1]):
+            assert bpy.ops.nla.meta_add() == {"FINISHED"}
+    finally:
+        area.type = kind
+    assert [strip.type for strip in track.strips] == ["META"]
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+    left = sorted({a.name for a in bpy.data.actions} - handle_actions)
+    assert left == [], f"Clear Bake left {len(left)} action(s) of a meta strip: {left}"
 
 
 def test_the_python_entry_point_bakes_the_scene_it_is_given(addon):
