@@ -87,6 +87,20 @@ def _remove_keys(cage):
     return removed
 
 
+def _show_live(cage, points):
+    """Have a baked cage show ``points`` (n, 3) instead of its bake (whose keys are muted, the
+    pose put in its reference key), or, with None, play its bake again."""
+    key = cage.data.shape_keys if cage is not None else None
+    if key is None:  # the cage changed under the bake (which then fails): nothing to show
+        return
+    for block in key.key_blocks:
+        if block.name.startswith(PREFIX):
+            block.mute = points is not None
+    shown = rig_format.rest_of(cage) if points is None else np.ascontiguousarray(points, dtype=np.float32)
+    key.reference_key.data.foreach_set("co", shown.ravel())
+    cage.data.update()
+
+
 def _strips(strips):
     """Every strip of ``strips``, those inside meta strips included."""
     for strip in strips:
@@ -229,6 +243,9 @@ class Bake:
         self.live = [obj for obj in rig_format.owners(self.scene, depsgraph) if obj not in self.objects
                      and obj.shapedeform.handles and not rig_format.is_baked(obj)
                      ] if any(_may_follow_others(obj) for obj in self.objects) else []
+        # Rigs baked before: their cages play that bake, which the rigs following them would
+        # read; for the length of this bake they show what it solves (:func:`_show_live`).
+        self.rebaked = [obj for obj in self.objects if rig_format.is_baked(obj)]
         self.captured = {obj.name: [] for obj in self.objects}
         self.times = []  # the animation time each frame showed
         self.done = 0
@@ -275,6 +292,8 @@ class Bake:
         and the bake goes on without it)."""
         if obj in self.objects:
             posed[obj.name] = rig.pose(obj, depsgraph, final=True).shown
+            if obj in self.rebaked:
+                _show_live(obj.shapedeform.cage, posed[obj.name])
             return True
         return not rig.pose_safely(obj, depsgraph, final=True)
 
@@ -282,8 +301,11 @@ class Bake:
         self.scene.frame_set(self.original_frame[0], subframe=self.original_frame[1])
 
     def abort(self):
-        """Stop without writing anything; the scene goes back to its frame and live pose."""
+        """Stop without writing anything; the scene goes back to its frame and live pose (a
+        rig baked before, to its bake)."""
         self.captured.clear()
+        for obj in self.rebaked:
+            _show_live(obj.shapedeform.cage, None)
         self._restore_frame()
 
     def finish(self):

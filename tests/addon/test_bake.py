@@ -362,6 +362,42 @@ def test_baking_only_the_rig_that_follows_another_live_rig_poses_that_rig_on_eve
     assert max(errors.values()) < 1e-5, f"baked B off its live pose, per frame: {errors}"
 
 
+def test_baking_again_follows_a_changed_leader(addon):
+    """The head and the hat baked, the head's last key changed, both baked again: the hat's new
+    bake sits on the head's new motion (the head's cage kept playing its old bake while it was
+    baked again, and the hat was baked on that: 0.6 off); a bake cancelled half way leaves the
+    old bakes playing."""
+    first, second, expected_old = hat_on_a_head()
+    handle = first.shapedeform.handles[-1].object
+    scene = bpy.context.scene
+
+    def key_last(offset):
+        scene.frame_set(6)
+        handle.location.y += offset
+        handle.keyframe_insert("location", frame=6)
+
+    key_last(-0.8)
+    expected_new = {}
+    for frame in FRAMES:
+        scene.frame_set(frame)
+        scene.frame_set(frame)  # twice: the hat follows the head's new shape
+        expected_new[frame] = checks.evaluated_mesh_points(second).copy()
+    assert np.abs(expected_new[6] - expected_old[6]).max() > 0.3
+    key_last(0.8)
+    bake = addon.shapedeform_addon.bake
+    assert bake.bake_objects([first, second], 1, 6) == [first, second]
+    key_last(-0.8)
+    assert bake.bake_objects([first, second], 1, 6, cancelled=lambda: True) is None
+    for frame in FRAMES:
+        scene.frame_set(frame)
+        np.testing.assert_allclose(checks.evaluated_mesh_points(second), expected_old[frame], atol=1e-5)
+    assert bake.bake_objects([first, second], 1, 6) == [first, second]
+    for frame in FRAMES:
+        scene.frame_set(frame)
+        np.testing.assert_allclose(checks.evaluated_mesh_points(second), expected_new[frame], atol=1e-4,
+                                   err_msg=str(frame))
+
+
 @pytest.mark.parametrize("pin", [None, "OVERLAP", "STARCH"])
 def test_baking_a_rig_whose_handles_follow_nothing_solves_no_other_rig(addon, monkeypatch, pin):
     """The head baked alone (its handles keyed, following nothing; a pin rides on its own cage):
