@@ -89,8 +89,8 @@ def bind(obj):
 def unbind(obj):
     """Remove the rig: modifier, cage, bake, handles; the object's data is as it was.
 
-    A follower (a duplicate of a rig's owner) gives up only its modifier and copied settings;
-    the owner's rig is untouched. A rig made by an older version, which wrote poses into the
+    A follower (a duplicate of a rig's owner) gives up only its modifier and copied settings
+    (an image plane gets its quad back); the owner's rig is untouched. A rig made by an older version, which wrote poses into the
     object's data, gets its rest shape back from what that version saved.
 
     Returns
@@ -112,10 +112,7 @@ def unbind(obj):
     # the object's data: there is nothing to restore.
     legacy = rig_format.is_legacy(obj)
     if rig_format.is_follower(obj):
-        for modifier in rig_format.modifiers_of(obj):
-            obj.modifiers.remove(modifier)
-        handles.release_follower(obj)
-        return []
+        return handles.release_follower(obj)
     source = sources.module_for(obj)
     if settings.cage is None:
         lost = (source.restore_legacy(obj) if legacy else []) + source.unbind(obj)

@@ -450,18 +450,30 @@ def keep_in_collection(obj):
 
 
 def release_follower(obj):
-    """Make a follower a plain object: its own cage and its copy of the rig's settings go; its
-    data, modifiers aside, is as it is (the quad of an image plane is the owner's to give back)."""
+    """Make a follower a plain object: its modifiers, its own cage and its copy of the rig's
+    settings go; an image plane gets its quad back, as its owner does on unbind.
+
+    Returns
+    -------
+    list of str
+        What could not be given back, as phrases for a message (see ``image_plane.unbind``).
+    """
     settings = obj.shapedeform
+    quad = settings.original_data
+    # While its cage and modifier are there: they tell what transform was applied, and whether
+    # it was converted (its pose its own then, kept).
+    lost = image_plane.unbind(obj)
+    if quad is not None and quad.users == 0:  # the quad copy made for it (own_quad), not given back
+        bpy.data.meshes.remove(quad)
+    for modifier in rig_format.modifiers_of(obj):
+        obj.modifiers.remove(modifier)
     if is_own_cage(obj, settings.cage):  # its own (follow), sharing the rig's mesh
         bpy.data.objects.remove(settings.cage)
     settings.handles.clear()
     settings.handle_collection = None
-    quad, settings.original_data = settings.original_data, None
-    if quad is not None and quad.users == 0:  # the quad copy made for it (image_plane.own_quad)
-        bpy.data.meshes.remove(quad)
     rig_format.forget(obj)
     rig_format.keep_handles_evaluated(obj)  # unbound now: its driver goes
+    return lost
 
 
 def locked_by_override(obj):

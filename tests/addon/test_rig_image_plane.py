@@ -317,6 +317,31 @@ def test_a_duplicate_gets_a_rest_quad_of_its_own(addon, tmp_path, how):
     np.testing.assert_array_equal(checks.mesh_points(copy), 2.0 * quad)
 
 
+def test_a_follower_unbound_before_its_owner_gets_its_quad_back(addon, tmp_path):
+    """Shift+D of a bound plane alone follows its rig; unbound while the original is still bound
+    it gets its own quad back, as when unbound after the original (it stayed a cut-out of 413
+    vertices and its quad copy was deleted), and the original's quad is untouched."""
+    from mathutils import Matrix
+
+    obj, _ = import_picture(tmp_path)
+    quad = checks.mesh_points(obj).copy()
+    checks.bind_with_handles(obj, (-0.44, -0.04, 0.0), (0.17, -0.04, 0.0))
+    checks.select_only(obj)
+    assert bpy.ops.object.duplicate() == {"FINISHED"}
+    copy = bpy.context.active_object
+    cutout = copy.data.name
+    checks.select_only(copy)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert not copy.shapedeform.is_bound and obj.shapedeform.is_bound
+    assert len(copy.data.vertices) == 4, f"the copy stays a cut-out of {len(copy.data.vertices)} vertices"
+    np.testing.assert_array_equal(checks.mesh_points(copy), quad)
+    assert cutout not in bpy.data.meshes, "the copy's cut-out was left behind"
+    copy.data.transform(Matrix.Scale(2.0, 4))
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    np.testing.assert_array_equal(checks.mesh_points(obj), quad)
+
+
 @pytest.mark.parametrize("read_through", ["render-active map", "UV Map node"])
 def test_every_uv_map_is_kept_and_the_picture_is_cut_out_through_the_one_it_is_read_by(addon, tmp_path,
                                                                                        read_through):
