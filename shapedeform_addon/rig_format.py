@@ -53,6 +53,7 @@ BAKE_MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
 RIGGED_KEY = "rigged_attribute"
 CUTOUT_KEY = "cutout_points"  # on an image plane's settings: the cut-out's vertices as bind made them
 CUTOUT_ATTRIBUTES = "cutout_attributes"  # ... and its attributes (UV maps with a digest of their UVs)
+QUAD_STAMP = "shapedeform_cutout"  # on an image plane's rest quad: the cut-out it was kept for
 HANDLE_INDICES = "indices"  # on a handle's item: the graph points it owns
 HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when it was added
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to

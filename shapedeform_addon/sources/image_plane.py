@@ -21,7 +21,7 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane, transform_points
 from ...solver.rigging.silhouette import image_cutout, map_by_triangles
 from .. import rig_format
-from ..rig_format import CUTOUT_ATTRIBUTES, CUTOUT_KEY
+from ..rig_format import CUTOUT_ATTRIBUTES, CUTOUT_KEY, QUAD_STAMP
 from ..errors import RigError
 from . import mesh as mesh_source
 from .prepared import Prepared
@@ -199,6 +199,9 @@ def prepare(obj, settings):
         cutout.polygons.foreach_set("material_index", np.full(len(cutout.polygons), material_index, np.int32))
         cutout.update()
         o.shapedeform.original_data = quad
+        # A copy's cut-out has another name: it needs a quad of its own (own_quad). (A pointer
+        # would be a user of the cut-out, which Blender then will not apply a transform to.)
+        quad[QUAD_STAMP] = cutout.name
         # To tell, at unbind, whether it was edited.
         o.shapedeform[CUTOUT_KEY] = vertices.astype(np.float32).ravel()
         o.shapedeform[CUTOUT_ATTRIBUTES] = _attribute_digests(cutout)
@@ -217,21 +220,34 @@ def own_quad(obj, copied_from):
     """Give a duplicate of a bound image plane a quad of its own where its cut-out is its own;
     True when it did.
 
-    Shift+D copies the cut-out but not the quad, which only the rig's settings point at: the two
-    planes then shared one rest quad, and an edit of either's quad after Unbind changed the
-    other's. A linked duplicate (Alt+D) shares the cut-out, so it shares the quad too.
+    Shift+D copies the cut-out but not the quad, which only the rig's settings point at: the
+    copy then shared its rest quad with the plane it was copied from (the rig's owner or a
+    follower of it), and an edit of either's quad after Unbind changed the other's. The quad
+    names the cut-out it was kept for (``QUAD_STAMP``), which a copy's cut-out is not; a linked
+    duplicate (Alt+D) shares the cut-out, so it shares the quad too. (A cut-out renamed by hand
+    gets a copy of its quad too, which changes nothing it shows.)
 
     Parameters
     ----------
     obj : bpy.types.Object
-        The duplicate.
+        A follower, or a duplicate just given a rig of its own.
     copied_from : bpy.types.Object
-        The bound plane it was duplicated from (the owner of the rig it was made with).
+        The owner of the rig it was duplicated with: its cut-out keeps a quad bound by a version
+        that did not name the cut-out.
     """
     quad = obj.shapedeform.original_data
-    if quad is None or quad != copied_from.shapedeform.original_data or obj.data == copied_from.data:
+    if quad is None:
         return False
-    obj.shapedeform.original_data = quad.copy()
+    kept_for = quad.get(QUAD_STAMP)
+    if kept_for is None:
+        kept_for = (copied_from.data if quad == copied_from.shapedeform.original_data else obj.data).name
+        if quad.library is None:  # a library's is left as the library has it
+            quad[QUAD_STAMP] = kept_for
+    if kept_for == obj.data.name:
+        return False
+    own = quad.copy()
+    own[QUAD_STAMP] = obj.data.name
+    obj.shapedeform.original_data = own
     return True
 
 
@@ -248,6 +264,7 @@ def unbind(obj):
         # mesh's would be (the status bar said so); the quad is not given back over it.
         obj.shapedeform.pop(CUTOUT_KEY, None)
         obj.shapedeform.pop(CUTOUT_ATTRIBUTES, None)
+        obj.shapedeform.original_data.pop(QUAD_STAMP, None)
         obj.shapedeform.original_data = None
         return []
     applied = rig_format.rig_to_object(obj)
@@ -263,6 +280,7 @@ def unbind(obj):
         lost.append("the materials given to its cut-out (the picture's quad keeps its own; Undo brings them back)")
     obj.shapedeform.pop(CUTOUT_KEY, None)
     obj.shapedeform.pop(CUTOUT_ATTRIBUTES, None)
+    original.pop(QUAD_STAMP, None)
     obj.data = original
     obj.shapedeform.original_data = None
     if not np.allclose(applied, np.eye(4), rtol=0.0, atol=1e-6):

@@ -317,6 +317,40 @@ def test_a_duplicate_gets_a_rest_quad_of_its_own(addon, tmp_path, how):
     np.testing.assert_array_equal(checks.mesh_points(copy), 2.0 * quad)
 
 
+@pytest.mark.parametrize("how", ["follower alone", "with the owner and handles"])
+def test_a_copy_of_a_follower_gets_a_rest_quad_of_its_own(addon, tmp_path, how):
+    """Shift+D of a follower (a Shift+D copy of a bound plane), alone or together with the
+    original and its handles: every plane gets a rest quad of its own, so scaling one's quad
+    after Unbind leaves every other's as imported (the copy shared the follower's quad: the
+    follower's quad came back scaled by both)."""
+    from mathutils import Matrix
+
+    obj, _ = import_picture(tmp_path)
+    quad = checks.mesh_points(obj).copy()
+    handles = checks.bind_with_handles(obj, (-0.44, -0.04, 0.0), (0.17, -0.04, 0.0))
+    checks.select_only(obj)
+    assert bpy.ops.object.duplicate() == {"FINISHED"}
+    follower = bpy.context.active_object
+    bpy.context.view_layer.update()
+    checks.select_only(follower)
+    if how != "follower alone":
+        for other in (obj, *handles):
+            other.select_set(True)
+    assert bpy.ops.object.duplicate() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    planes = [o for o in bpy.data.objects if o.type == "MESH" and o.shapedeform.is_bound]
+    assert len(planes) == (3 if how == "follower alone" else 4)
+    is_owner = addon.shapedeform_addon.rig_format.is_owner
+    for plane in sorted(planes, key=lambda plane: not is_owner(plane)):  # followers last: each gets its quad back
+        checks.select_only(plane)
+        assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    for factor, plane in enumerate(planes, start=2):
+        plane.data.transform(Matrix.Scale(factor, 4))
+    for factor, plane in enumerate(planes, start=2):
+        scale = np.abs(checks.mesh_points(plane)).max() / np.abs(quad).max()
+        assert scale == pytest.approx(factor), f"'{plane.name}' shares its quad: scaled {scale:g} times, not {factor}"
+
+
 def test_a_follower_unbound_before_its_owner_gets_its_quad_back(addon, tmp_path):
     """Shift+D of a bound plane alone follows its rig; unbound while the original is still bound
     it gets its own quad back, as when unbound after the original (it stayed a cut-out of 413
