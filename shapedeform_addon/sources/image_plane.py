@@ -53,6 +53,12 @@ def _image_node(obj):
     return min(found)[2] if found else None
 
 
+# How far past a visible texel's edge the picture is cut out, in texels, by the node's
+# interpolation: the reach of its filter (Linear 0.5, the cubic B-spline 1.5; Smart renders as
+# Cubic) plus the outline's simplification (half a texel) and some room.
+_FILTER_MARGIN = {"Closest": 1.0, "Linear": 1.0, "Cubic": 2.5, "Smart": 2.5}
+
+
 def _image(obj):
     node = _image_node(obj)
     return None if node is None else node.image
@@ -173,7 +179,9 @@ def prepare(obj, settings):
                        "it (its corners' UVs lie on one line): unwrap the plane again") from None
     try:
         # Only what the plane shows: its UVs may frame part of the picture (a sprite sheet's).
-        rings = [to_plane(ring / (width, height)) for ring in image_cutout(alpha, window=uv * (width, height))]
+        margin = _FILTER_MARGIN.get(node.interpolation, max(_FILTER_MARGIN.values()))
+        rings = [to_plane(ring / (width, height))
+                 for ring in image_cutout(alpha, margin=margin, window=uv * (width, height))]
         graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
