@@ -90,8 +90,9 @@ def unbind(obj):
     """Remove the rig: modifier, cage, bake, handles; the object's data is as it was.
 
     A follower (a duplicate of a rig's owner) gives up only its modifier and copied settings
-    (an image plane gets its quad back); the owner's rig is untouched. A rig made by an older version, which wrote poses into the
-    object's data, gets its rest shape back from what that version saved.
+    (an image plane gets its quad back); the owner's rig is untouched. A rig made by an older
+    version, which wrote poses into the object's data, gets its rest shape back from what that
+    version saved.
 
     Returns
     -------

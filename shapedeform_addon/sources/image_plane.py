@@ -324,18 +324,35 @@ def _attribute_digests(mesh):
 
 def _attribute_edits(obj, cutout, uvs_too):
     """What Unbind drops beyond the cut-out's vertices: its UV maps edited (when ``uvs_too``:
-    vertices added or deleted change them with no edit of their own), attributes added (colours
-    painted), vertex-group weights; as phrases for a message."""
+    vertices added or deleted change them with no edit of their own), renamed, added or
+    deleted, attributes added (colours painted), vertex-group weights; as phrases for a message."""
     lost = []
     bound = obj.shapedeform.get(CUTOUT_ATTRIBUTES)
     if bound is not None:  # bound by a version that kept them
         bound = bound.to_dict()
         now = _attribute_digests(cutout)
+        uv_maps = {layer.name for layer in cutout.uv_layers}
         edited = [name for name, digest in now.items() if name in bound and digest != bound[name]]
-        added = [name for name in now if name not in bound]
+        deleted = [name for name, digest in bound.items() if digest and name not in now]  # only UV maps have digests
+        added_uvs = [name for name in now if name in uv_maps and name not in bound]
+        added = [name for name in now if name not in uv_maps and name not in bound]
+        # A UV map renamed is one deleted and one added with the same UVs.
+        added_by_uvs = {now[name]: name for name in added_uvs}
+        renamed = {old: added_by_uvs.pop(bound[old]) for old in deleted if bound[old] in added_by_uvs}
+        deleted = [name for name in deleted if name not in renamed]
+        added_uvs = [name for name in added_uvs if name not in renamed.values()]
         if edited and uvs_too:
             lost.append(f"the edits of its cut-out's UV maps ({', '.join(map(repr, edited))}; the picture's quad "
                         "keeps its own; Undo brings them back)")
+        if renamed:
+            pairs = ", ".join(f"{old!r} as {new!r}" for old, new in renamed.items())
+            lost.append(f"the UV maps renamed on its cut-out ({pairs}; the picture's quad keeps their names: "
+                        "rename them there again)")
+        if added_uvs:
+            lost.append(f"the UV maps added to its cut-out ({', '.join(map(repr, added_uvs))}; Undo brings them back)")
+        if deleted:
+            lost.append(f"the UV maps deleted from its cut-out ({', '.join(map(repr, deleted))}; the picture's quad "
+                        "still has them: delete them there again)")
         if added:
             lost.append(f"the attributes added to its cut-out ({', '.join(map(repr, added))}: colours and the like; "
                         "Undo brings them back)")

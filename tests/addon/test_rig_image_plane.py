@@ -536,11 +536,15 @@ def test_a_quad_with_a_corner_moved_shows_the_same_picture_once_cut_out(addon, t
 
 @pytest.mark.parametrize("edit, said", [("none", None), ("uv", "UV maps ('UVMap'"),
                                         ("colour", "attributes added to its cut-out ('Paint'"),
-                                        ("weights", "vertex-group weights")])
+                                        ("weights", "vertex-group weights"),
+                                        ("uv renamed", "UV maps renamed on its cut-out ('UVMap' as 'Renamed'"),
+                                        ("uv added", "UV maps added to its cut-out ('Extra'"),
+                                        ("uv deleted", "UV maps deleted from its cut-out ('UVMap'")])
 def test_unbind_names_the_uv_colour_and_weight_edits_it_drops(addon, tmp_path, edit, said):
-    """UVs edited, a colour attribute painted or vertex-group weights given to the cut-out go
-    with it on Unbind, which says so (it said nothing); a trip through Edit Mode that edits
-    nothing is no edit."""
+    """UVs edited, a colour attribute painted, vertex-group weights given or UV maps renamed,
+    added or deleted on the cut-out go with it on Unbind, which says so by name (it said
+    nothing; a UV map renamed or added was called an attribute added, "colours and the like";
+    one deleted went unsaid); a trip through Edit Mode that edits nothing is no edit."""
     import bmesh
 
     obj, _ = import_picture(tmp_path)
@@ -559,6 +563,12 @@ def test_unbind_names_the_uv_colour_and_weight_edits_it_drops(addon, tmp_path, e
         paint.data.foreach_set("color", np.tile(np.float32([1, 0, 0, 1]), len(cutout.vertices)))
     elif edit == "weights":
         obj.vertex_groups.new(name="Arm").add(list(range(10)), 1.0, "REPLACE")
+    elif edit == "uv renamed":
+        cutout.uv_layers["UVMap"].name = "Renamed"
+    elif edit == "uv added":
+        cutout.uv_layers.new(name="Extra")
+    elif edit == "uv deleted":
+        cutout.uv_layers.remove(cutout.uv_layers["UVMap"])
     lost = addon.shapedeform_addon.binding.unbind(obj)
     assert len(obj.data.vertices) == 4
     if said is None:
