@@ -40,17 +40,24 @@ def _image_node(obj):
     one whose alpha is wired to something (a shader's Alpha), else the first. An image Blender
     could not load (its file missing, a sequence no frame of which was shown yet) has no
     channels to tell: it counts, so Bind can say what is wrong rather than rig the bare quad."""
+    found = _pictures(obj)
+    return found[0] if found else None
+
+
+def _pictures(obj):
+    """The image nodes with alpha of the material the quad's face shows, those whose alpha is
+    wired to something first."""
     if not obj.material_slots:
-        return None
+        return []
     material = obj.material_slots[_material_index(obj)].material
     if material is None or material.node_tree is None:
-        return None
+        return []
     found = []
     for node in material.node_tree.nodes:
         image = getattr(node, "image", None) if node.type == "TEX_IMAGE" else None
         if image is not None and image.channels in (0, 4) and image.alpha_mode != "NONE":
             found.append((not node.outputs["Alpha"].is_linked, len(found), node))
-    return min(found)[2] if found else None
+    return [node for *_, node in sorted(found)]
 
 
 # How far past a visible texel's edge the picture is cut out, in texels, by the node's
@@ -123,16 +130,46 @@ def is_image_plane(obj):
 
 
 def _picture_uv_layer(quad, node):
-    """The UV map ``node`` reads its picture through: the one a UV Map node wired to its Vector
-    names, else the one Blender renders with (the render-active map, which also feeds an
-    unwired Vector). The map being edited (the active one) may be a scratch map."""
+    """The UV map ``node`` reads its picture through, and the name of a node on the way that
+    changes the coordinates ("" when none).
+
+    The map is the one a UV Map node upstream of its Vector names (through reroutes, node
+    groups and nodes such as Mapping), else the one Blender renders with (the render-active
+    map, which also feeds an unwired Vector). The map being edited (the active one) may be a
+    scratch map. A node that changes the coordinates (a Mapping node that is not the identity, a
+    Texture Coordinate output other than UV) makes what is cut out differ from what renders.
+    """
+    named, changed = "", ""
     links = node.inputs["Vector"].links
-    source = links[0].from_node if links else None
-    while source is not None and source.type == "REROUTE":
-        links = source.inputs[0].links
-        source = links[0].from_node if links else None
-    named = source.uv_map if source is not None and source.type == "UVMAP" else ""
-    return quad.uv_layers.get(named) or next(layer for layer in quad.uv_layers if layer.active_render)
+    while links:
+        link = links[0]
+        source = link.from_node
+        if source.type == "UVMAP":
+            named = source.uv_map
+            break
+        if source.type == "TEX_COORD":
+            changed = changed or ("" if link.from_socket.name == "UV" else source.name)
+            break
+        if source.type == "GROUP" and source.node_tree is not None:
+            inside = next((n for n in source.node_tree.nodes if n.type == "GROUP_OUTPUT" and n.is_active_output), None)
+            links = inside.inputs[link.from_socket.identifier].links if inside is not None else ()
+            continue
+        if source.type == "MAPPING" and not _is_identity(source):
+            changed = changed or source.name
+        elif source.type not in ("REROUTE", "MAPPING"):
+            changed = changed or source.name
+        vectors = [socket for socket in source.inputs if socket.type == "VECTOR" and socket.is_linked]
+        links = vectors[0].links if vectors else ()
+    layer = quad.uv_layers.get(named) or next(layer for layer in quad.uv_layers if layer.active_render)
+    return layer, changed
+
+
+def _is_identity(mapping):
+    """Whether a Mapping node leaves its vectors as they are (its inputs at their rest values)."""
+    rest = {"Location": (0.0, 0.0, 0.0), "Rotation": (0.0, 0.0, 0.0), "Scale": (1.0, 1.0, 1.0)}
+    return all(name not in mapping.inputs or (not mapping.inputs[name].is_linked
+                                              and np.allclose(mapping.inputs[name].default_value, value))
+               for name, value in rest.items())
 
 
 def _loop_uvs(layer):
@@ -155,7 +192,14 @@ def prepare(obj, settings):
     corners = mesh_source.positions(quad).astype(np.float64)
     loop_vertices = np.empty(len(quad.loops), dtype=np.int32)
     quad.loops.foreach_get("vertex_index", loop_vertices)
-    picture_layer = _picture_uv_layer(quad, node)
+    picture_layer, changed = _picture_uv_layer(quad, node)
+    if changed:
+        advice = "; ".join(filter(None, [advice, f"'{changed}' changes the coordinates its picture is read through: "
+                                                  "what is cut out may not be what renders"]))
+    others = [other.image.name for other in _pictures(obj)[1:] if other.outputs["Alpha"].is_linked]
+    if others:
+        advice = "; ".join(filter(None, [advice, f"only the picture '{node.image.name}' is cut out, not "
+                                                  + ", ".join(f"'{name}'" for name in others)]))
     uv = _loop_uvs(picture_layer)
     try:
         plane = fit_plane(corners)

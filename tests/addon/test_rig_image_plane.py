@@ -420,7 +420,8 @@ def test_a_follower_unbound_before_its_owner_gets_its_quad_back(addon, tmp_path)
     np.testing.assert_array_equal(checks.mesh_points(obj), quad)
 
 
-@pytest.mark.parametrize("read_through", ["render-active map", "UV Map node"])
+@pytest.mark.parametrize("read_through", ["render-active map", "UV Map node", "UV Map node and Mapping",
+                                          "UV Map node in a group"])
 def test_every_uv_map_is_kept_and_the_picture_is_cut_out_through_the_one_it_is_read_by(addon, tmp_path,
                                                                                        read_through):
     """A plane with three UV maps: the imported one, a scratch one being edited (active: half the
@@ -442,11 +443,23 @@ def test_every_uv_map_is_kept_and_the_picture_is_cut_out_through_the_one_it_is_r
     quad.uv_layers.new(name="Scratch").data.foreach_set("uv", scratch[loops].astype(np.float32).ravel())
     quad.uv_layers.active = quad.uv_layers["Scratch"]
     quad.uv_layers["UVMap"].active_render = True
-    if read_through == "UV Map node":
+    if read_through != "render-active map":  # the UV Map node reached through nodes that change nothing
         tree = obj.active_material.node_tree
+        vector = next(n for n in tree.nodes if n.type == "TEX_IMAGE").inputs["Vector"]
+        if read_through.endswith("Mapping"):
+            mapping = tree.nodes.new("ShaderNodeMapping")
+            tree.links.new(mapping.outputs["Vector"], vector)
+            vector = mapping.inputs["Vector"]
+        if read_through.endswith("group"):
+            group = bpy.data.node_groups.new("UVs", "ShaderNodeTree")
+            group.interface.new_socket("Vector", in_out="OUTPUT", socket_type="NodeSocketVector")
+            holder = tree.nodes.new("ShaderNodeGroup")
+            holder.node_tree = group
+            tree.links.new(holder.outputs[0], vector)
+            tree, vector = group, group.nodes.new("NodeGroupOutput").inputs[0]
         node = tree.nodes.new("ShaderNodeUVMap")
         node.uv_map = "Turned"
-        tree.links.new(node.outputs["UV"], next(n for n in tree.nodes if n.type == "TEX_IMAGE").inputs["Vector"])
+        tree.links.new(node.outputs["UV"], vector)
     corners = checks.mesh_points(obj)[:, :2].astype(np.float64)
     maps = {layer.name: np.linalg.lstsq(np.column_stack([corners, np.ones(4)]), uv_of_points(quad, layer.name),
                                         rcond=None)[0] for layer in quad.uv_layers}
@@ -470,6 +483,28 @@ def test_every_uv_map_is_kept_and_the_picture_is_cut_out_through_the_one_it_is_r
     obj.data.uv_layers[picture_map].data.foreach_set("uv", np.full(2 * len(quad.loops), 0.5, np.float32))
     with pytest.raises(RuntimeError, match=f"its UV map '{picture_map}', which shows its picture, shows none of it"):
         bpy.ops.shapedeform.bind()
+
+
+def test_bind_says_when_the_picture_is_read_through_changed_coordinates_or_is_one_of_two(addon, tmp_path,
+                                                                                          capsys):
+    """A Mapping node that scales the UVs, a second picture with alpha wired to the shader: what
+    is cut out may not be what renders, and Bind says so (it cut out silently: a disc vanished,
+    or the cut-out missed the scaled picture)."""
+    obj, _ = import_picture(tmp_path)
+    tree = obj.active_material.node_tree
+    image = next(n for n in tree.nodes if n.type == "TEX_IMAGE")
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Scale"].default_value = (2.0, 2.0, 1.0)
+    tree.links.new(tree.nodes.new("ShaderNodeUVMap").outputs["UV"], mapping.inputs["Vector"])
+    tree.links.new(mapping.outputs["Vector"], image.inputs["Vector"])
+    second = tree.nodes.new("ShaderNodeTexImage")
+    second.image = image.image.copy()
+    second.image.name = "Line Art"
+    tree.links.new(second.outputs["Alpha"], tree.nodes.new("ShaderNodeMath").inputs[0])
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    said = capsys.readouterr().out
+    assert f"'{mapping.name}' changes the coordinates its picture is read through" in said
+    assert "is cut out, not 'Line Art'" in said
 
 
 def test_the_picture_the_face_shows_is_the_one_cut_out(addon, tmp_path):
