@@ -718,7 +718,7 @@ def test_instanced_character_in_shot_with_handles_disabled_in_renders(addon, how
     assert np.abs(hidden - seen).max() == 0, f"{int((np.abs(hidden - seen).max(axis=2) > 0).sum())} pixels differ"
 
 
-def test_follower_after_its_owner_is_unbound(addon, capfd):
+def test_follower_after_its_owner_is_unbound(addon, tmp_path, capfd):
     original, left, right = rig_with_two_handles()
     copy = duplicate([original], original)
     copy.location.x += 3.0
@@ -729,8 +729,7 @@ def test_follower_after_its_owner_is_unbound(addon, capfd):
     for f in (1, 2, 3):
         bpy.context.scene.frame_set(f)
     out, err = capfd.readouterr()
-    import tempfile, os
-    path = os.path.join(tempfile.mkdtemp(), "f.blend")
+    path = str(tmp_path / "f.blend")
     name = copy.name
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.ops.wm.open_mainfile(filepath=path)
