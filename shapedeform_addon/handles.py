@@ -314,7 +314,6 @@ def adopt_duplicated(obj):
     settings.cage = cage
     set_active(settings, min(settings.active_handle, len(settings.handles) - 1))
     rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage})
-    rig_format.keep_handles_evaluated(obj)
     return True
 
 
@@ -358,8 +357,7 @@ def follow(obj):
         # In no collection: Blender evaluates it for the modifier that reads it, and when the
         # duplicate is deleted nothing uses it any more (so it is not saved).
         obj.shapedeform.cage = cage
-    changed = rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage})
-    return rig_format.keep_handles_evaluated(obj) or changed
+    return rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage})
 
 
 def is_own_cage(obj, cage):
@@ -390,7 +388,9 @@ def follower_cages(obj):
 def settle_duplicate(obj):
     """A duplicate of a rig's owner, made or found: a rig of its own where it was duplicated
     with handles of the rig (:func:`adopt_duplicated`), else a follower of the rig
-    (:func:`follow`). Library data is left as the library has it."""
+    (:func:`follow`). Library data is left as the library has it. (Its callers then have the
+    driver that keeps the handles evaluated fit what it became:
+    ``rig_format.keep_handles_evaluated``.)"""
     if obj.library is None and rig_format.is_follower(obj):
         copied_from = obj.shapedeform.cage.shapedeform.rig
         if not rig_format.modifiers_of(obj):  # converted (Keep Original), its modifier applied: frozen

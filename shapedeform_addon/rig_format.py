@@ -167,16 +167,9 @@ def keep_handles_evaluated(obj):
     if obj.library is not None or obj.override_library is not None:
         return False
     owner = obj if is_owner(obj) else owner_of(obj) if is_follower(obj) else None
-    wanted = []
-    for item in (owner.shapedeform.handles if owner is not None else ()):
-        handle = item.object
-        if present(handle) and handle.shapedeform.pin_kind == "POSITION":
-            wanted.append((handle, "TRANSFORMS", ""))
-        elif present(handle):
-            wanted.extend((handle, "SINGLE_PROP", f"shapedeform.{name}")
-                          for name in _PIN_SETTINGS[handle.shapedeform.pin_kind])
+    wanted = _watched_targets(owner) if owner is not None else []
+    fcurve = _watching_driver(obj)
     animation = obj.animation_data
-    fcurve = animation.drivers.find(HANDLES_WATCHED) if animation is not None else None
     if fcurve is not None:
         if fcurve.driver.is_valid and wanted == [(v.targets[0].id, v.type, v.targets[0].data_path)
                                                  for v in fcurve.driver.variables]:
@@ -205,9 +198,28 @@ def keep_handles_evaluated(obj):
     return True
 
 
+def _watched_targets(owner):
+    """What the driver of :func:`keep_handles_evaluated` reads, as (Empty, variable type, data
+    path): each handle's transform, each pin's keyable amounts."""
+    wanted = []
+    for item in owner.shapedeform.handles:
+        handle = item.object
+        if present(handle) and handle.shapedeform.pin_kind == "POSITION":
+            wanted.append((handle, "TRANSFORMS", ""))
+        elif present(handle):
+            wanted.extend((handle, "SINGLE_PROP", f"shapedeform.{name}")
+                          for name in _PIN_SETTINGS[handle.shapedeform.pin_kind])
+    return wanted
+
+
+def _watching_driver(obj):
+    """The driver F-Curve of :func:`keep_handles_evaluated` on ``obj``, or None."""
+    return obj.animation_data.drivers.find(HANDLES_WATCHED) if obj.animation_data is not None else None
+
+
 def watches_handles(obj):
     """Whether ``obj`` has the driver :func:`keep_handles_evaluated` makes."""
-    return obj.animation_data is not None and obj.animation_data.drivers.find(HANDLES_WATCHED) is not None
+    return _watching_driver(obj) is not None
 
 
 # -- the cage and the modifier ----------------------------------------------------------------
