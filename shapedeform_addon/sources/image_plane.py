@@ -193,13 +193,7 @@ def prepare(obj, settings):
     loop_vertices = np.empty(len(quad.loops), dtype=np.int32)
     quad.loops.foreach_get("vertex_index", loop_vertices)
     picture_layer, changed = _picture_uv_layer(quad, node)
-    if changed:
-        advice = "; ".join(filter(None, [advice, f"'{changed}' changes the coordinates its picture is read through: "
-                                                  "what is cut out may not be what renders"]))
-    others = [other.image.name for other in _pictures(obj)[1:] if other.outputs["Alpha"].is_linked]
-    if others:
-        advice = "; ".join(filter(None, [advice, f"only the picture '{node.image.name}' is cut out, not "
-                                                  + ", ".join(f"'{name}'" for name in others)]))
+    notes = [advice, *_reading_notes(obj, node, changed)]
     uv = _loop_uvs(picture_layer)
     try:
         plane = fit_plane(corners)
@@ -260,12 +254,22 @@ def prepare(obj, settings):
         o.data = cutout
 
     if quad.shape_keys is not None and len(quad.shape_keys.key_blocks) > 1:
-        advice = "; ".join(filter(None, [advice, "its shape keys stop showing while it is bound (the cut-out has "
-                                                  "none; Unbind gives the quad back with them)"]))
+        notes.append("its shape keys stop showing while it is bound (the cut-out has none; Unbind gives the quad "
+                     "back with them)")
     if not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
-        advice = "; ".join(filter(None, [advice, "its UVs show the picture more than once: only the copy in "
-                                                  "the UV square is cut out"]))
-    return Prepared(plane, graph, commit, advice=advice)
+        notes.append("its UVs show the picture more than once: only the copy in the UV square is cut out")
+    return Prepared(plane, graph, commit, advice="; ".join(filter(None, notes)))
+
+
+def _reading_notes(obj, node, changed):
+    """What Bind says when what it cuts out may differ from what renders: a node ``changed``
+    (its name) changes the picture's coordinates, or other pictures with alpha are wired in."""
+    notes = [f"'{changed}' changes the coordinates its picture is read through: what is cut out may not be "
+             "what renders"] if changed else []
+    others = [other.image.name for other in _pictures(obj)[1:] if other.outputs["Alpha"].is_linked]
+    if others:
+        notes.append(f"only the picture '{node.image.name}' is cut out, not " + ", ".join(map(repr, others)))
+    return notes
 
 
 def own_quad(obj, copied_from):
@@ -373,35 +377,43 @@ def _attribute_edits(obj, cutout, uvs_too):
     lost = []
     bound = obj.shapedeform.get(CUTOUT_ATTRIBUTES)
     if bound is not None:  # bound by a version that kept them
-        bound = bound.to_dict()
-        now = _attribute_digests(cutout)
+        bound, now = bound.to_dict(), _attribute_digests(cutout)
         uv_maps = {layer.name for layer in cutout.uv_layers}
-        edited = [name for name, digest in now.items() if name in bound and digest != bound[name]]
-        deleted = [name for name, digest in bound.items() if digest and name not in now]  # only UV maps have digests
-        added_uvs = [name for name in now if name in uv_maps and name not in bound]
+        lost += _uv_map_edits(bound, {name: digest for name, digest in now.items() if name in uv_maps}, uvs_too)
         added = [name for name in now if name not in uv_maps and name not in bound]
-        # A UV map renamed is one deleted and one added with the same UVs.
-        added_by_uvs = {now[name]: name for name in added_uvs}
-        renamed = {old: added_by_uvs.pop(bound[old]) for old in deleted if bound[old] in added_by_uvs}
-        deleted = [name for name in deleted if name not in renamed]
-        added_uvs = [name for name in added_uvs if name not in renamed.values()]
-        if edited and uvs_too:
-            lost.append(f"the edits of its cut-out's UV maps ({', '.join(map(repr, edited))}; the picture's quad "
-                        "keeps its own; Undo brings them back)")
-        if renamed:
-            pairs = ", ".join(f"{old!r} as {new!r}" for old, new in renamed.items())
-            lost.append(f"the UV maps renamed on its cut-out ({pairs}; the picture's quad keeps their names: "
-                        "rename them there again)")
-        if added_uvs:
-            lost.append(f"the UV maps added to its cut-out ({', '.join(map(repr, added_uvs))}; Undo brings them back)")
-        if deleted:
-            lost.append(f"the UV maps deleted from its cut-out ({', '.join(map(repr, deleted))}; the picture's quad "
-                        "still has them: delete them there again)")
         if added:
             lost.append(f"the attributes added to its cut-out ({', '.join(map(repr, added))}: colours and the like; "
                         "Undo brings them back)")
-    if any(vertex.groups for vertex in cutout.vertices):  # bind gives the cut-out no weights
+    if obj.vertex_groups and any(vertex.groups for vertex in cutout.vertices):  # bind gives the cut-out no weights
         lost.append("the vertex-group weights of its cut-out (the picture's quad keeps its own; Undo brings them back)")
+    return lost
+
+
+def _uv_map_edits(bound, now, uvs_too):
+    """Phrases for the cut-out's UV maps edited (when ``uvs_too``), renamed, added or deleted
+    since Bind, from the digests Bind kept (``bound``, every attribute; UV maps' not empty) and
+    the UV maps' now (``now``)."""
+    edited = [name for name, digest in now.items() if name in bound and digest != bound[name]]
+    deleted = [name for name, digest in bound.items() if digest and name not in now]
+    added = [name for name in now if name not in bound]
+    # A UV map renamed is one deleted and one added with the same UVs.
+    added_by_uvs = {now[name]: name for name in added}
+    renamed = {old: added_by_uvs.pop(bound[old]) for old in deleted if bound[old] in added_by_uvs}
+    deleted = [name for name in deleted if name not in renamed]
+    added = [name for name in added if name not in renamed.values()]
+    lost = []
+    if edited and uvs_too:
+        lost.append(f"the edits of its cut-out's UV maps ({', '.join(map(repr, edited))}; the picture's quad "
+                    "keeps its own; Undo brings them back)")
+    if renamed:
+        pairs = ", ".join(f"{old!r} as {new!r}" for old, new in renamed.items())
+        lost.append(f"the UV maps renamed on its cut-out ({pairs}; the picture's quad keeps their names: "
+                    "rename them there again)")
+    if added:
+        lost.append(f"the UV maps added to its cut-out ({', '.join(map(repr, added))}; Undo brings them back)")
+    if deleted:
+        lost.append(f"the UV maps deleted from its cut-out ({', '.join(map(repr, deleted))}; the picture's quad "
+                    "still has them: delete them there again)")
     return lost
 
 
