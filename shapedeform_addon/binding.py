@@ -28,7 +28,7 @@ def refusal(obj):
         owner = settings.cage.shapedeform.rig
         return f"'{obj.name}' follows the rig of '{owner.name}': unbind it first to give it its own"
     if settings.is_bound and settings.cage is None and not rig_format.is_legacy(obj):
-        return f"'{obj.name}' is bound but lost its cage (deleted by hand): unbind it and bind it again"
+        return rig.lost_cage(obj)
     if settings.is_bound:
         return f"'{obj.name}' is already bound"
     if settings.rig is not None:

@@ -50,7 +50,7 @@ class Rig:
                            "unbind it (its rest shape comes back) and bind it again")
         settings = obj.shapedeform
         if settings.cage is None or not len(settings.cage.data.vertices):
-            raise RigError(f"'{obj.name}' is bound but lost its cage (deleted by hand): unbind it and bind it again")
+            raise RigError(lost_cage(obj))
         self.coarse_copies = _coarse_copies
         self._last_solve = None  # (iterations, targets' bytes, positions, converged)
         self.plane, self.graph = rig_format.read_graph(obj)
@@ -168,6 +168,11 @@ def signature(obj, depsgraph=None):
     return (cage, tuple(_handle_signature(item.object, depsgraph) if rig_format.present(item.object) else None
                         for item in s.handles),
             values.weight_laplacian, values.weight_mvc, values.weight_edge, values.preserve_area, values.prevent_flips)
+
+
+def lost_cage(obj):
+    """What to say of a bound ``obj`` whose cage is gone."""
+    return f"'{obj.name}' is bound but lost its cage (deleted by hand): unbind it and bind it again"
 
 
 # The solver's parameters its messages name, as the sidebar labels them.
