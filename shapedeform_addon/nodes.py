@@ -547,13 +547,18 @@ def _sorted_drawings(b, drawings, sort_weight):
         b.group.links.new(piece.outputs[0], layered.inputs[0])
     b.group.links.new(start.outputs["Geometry"], layered.inputs[0])
     b.group.links.new(layered.outputs[0], end.inputs["Geometry"])
+    return b.node("GeometryNodeSwitch", {"Switch": _any_moved(b, drawings, sort_weight), "False": drawings,
+                                         "True": end.outputs["Geometry"]}, input_type="GEOMETRY").outputs[0]
+
+
+def _any_moved(b, drawings, sort_weight):
+    """Whether any stroke of ``drawings`` weighs other than 0 (a boolean single value): the
+    drawings' strokes are counted as curves, grease pencil having no stroke count of its own."""
     level = b.node("FunctionNodeCompare", {"A": sort_weight, "B": 0.0, "Epsilon": 0.5},
                    data_type="FLOAT", operation="EQUAL").outputs[0]
     moving = b.node("GeometryNodeDeleteGeometry", {"Geometry": drawings, "Selection": level}, domain="CURVE")
     as_curves = b.node("GeometryNodeGreasePencilToCurves", {"Grease Pencil": moving.outputs[0],
                                                              "Layers as Instances": False}).outputs[0]
     strokes = b.node("GeometryNodeAttributeDomainSize", {"Geometry": as_curves}, component="CURVE")
-    any_moving = b.node("FunctionNodeCompare", {"A": strokes.outputs["Spline Count"], "B": 0},
-                        data_type="INT", operation="GREATER_THAN").outputs[0]
-    return b.node("GeometryNodeSwitch", {"Switch": any_moving, "False": drawings, "True": end.outputs["Geometry"]},
-                  input_type="GEOMETRY").outputs[0]
+    return b.node("FunctionNodeCompare", {"A": strokes.outputs["Spline Count"], "B": 0},
+                  data_type="INT", operation="GREATER_THAN").outputs[0]
