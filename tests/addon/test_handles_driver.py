@@ -334,31 +334,32 @@ def test_old_file_gets_driver_back_on_load(addon, tmp_path, quiet):
 
 # -- undo ---------------------------------------------------------------------------------------
 
+def watching(count, step=None):
+    """The rig "Grid" after an undo step ``step`` ("undo", "redo" or None): its driver reads
+    its ``count`` handles, and is valid."""
+    if step is not None:
+        assert getattr(bpy.ops.ed, step)() == {"FINISHED"}
+    obj = bpy.data.objects["Grid"]
+    assert targets(obj) == expected_targets(obj) and len(targets(obj)) == count
+    assert_valid(obj)
+    return obj
+
+
 def test_undo_of_add_and_remove_handle_restores_driver(addon, quiet):
     obj, left, right = rig_with_two_handles()
     bpy.ops.ed.undo_push(message="two")
     checks.select_only(obj)
     assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.0, 0.0, 0.0])) == {"FINISHED"}
     bpy.ops.ed.undo_push(message="three")
-    obj = bpy.data.objects["Grid"]
-    assert len(targets(obj)) == 3
-    assert bpy.ops.ed.undo() == {"FINISHED"}
-    obj = bpy.data.objects["Grid"]
-    assert targets(obj) == expected_targets(obj) and len(targets(obj)) == 2
-    assert_valid(obj)
-    assert bpy.ops.ed.redo() == {"FINISHED"}
-    obj = bpy.data.objects["Grid"]
-    assert targets(obj) == expected_targets(obj) and len(targets(obj)) == 3
+    watching(3)
+    watching(2, "undo")
+    obj = watching(3, "redo")
     checks.select_only(obj)
     first = obj.shapedeform.handles[0].object.name
     assert bpy.ops.shapedeform.remove_handle(handle=first) == {"FINISHED"}
     bpy.ops.ed.undo_push(message="removed")
-    obj = bpy.data.objects["Grid"]
-    assert len(targets(obj)) == 2
-    assert bpy.ops.ed.undo() == {"FINISHED"}
-    obj = bpy.data.objects["Grid"]
-    assert targets(obj) == expected_targets(obj) and len(targets(obj)) == 3
-    assert_valid(obj)
+    watching(2)
+    obj = watching(3, "undo")
     # moves still pose
     h = obj.shapedeform.handles[2].object
     before = checks.evaluated_mesh_points(obj).copy()
@@ -419,7 +420,7 @@ def save_character(tmp_path, with_pin=False):
     return library
 
 
-def keyed_expectation(obj, handle, excluded_collection=None):
+def keyed_expectation(obj, handle):
     scene = bpy.context.scene
     handle.keyframe_insert("location", frame=1)
     handle.location.y += 0.5
@@ -491,7 +492,11 @@ def test_appended_character_driver_targets_its_own_handles(addon, tmp_path, quie
 
 # -- handles parented to bones, constrained ------------------------------------------------------
 
-def armature_driving(handle, hidden_collection):
+def armature_driving(handle):
+    """An armature in a collection "Armature" of the scene, whose bone ``handle`` is parented
+    to, keyed to move it 0.5 between frames 1 and 10; returns the armature and its collection."""
+    hidden_collection = bpy.data.collections.new("Armature")
+    bpy.context.scene.collection.children.link(hidden_collection)
     arm_data = bpy.data.armatures.new("Rig")
     arm = bpy.data.objects.new("Rig", arm_data)
     hidden_collection.objects.link(arm)
@@ -515,16 +520,14 @@ def armature_driving(handle, hidden_collection):
     pose_bone.keyframe_insert("location", frame=1)
     pose_bone.location = (0.5, 0, 0)  # bone's local X
     pose_bone.keyframe_insert("location", frame=10)
-    return arm
+    return arm, hidden_collection
 
 
 @pytest.mark.parametrize("hide", ["hide_viewport", "exclude"])
 def test_handle_parented_to_a_bone_of_a_hidden_armature(addon, hide, quiet):
     obj, left, right = rig_with_two_handles()
     scene = bpy.context.scene
-    rigcoll = bpy.data.collections.new("Armature")
-    scene.collection.children.link(rigcoll)
-    arm = armature_driving(right, rigcoll)
+    arm, rigcoll = armature_driving(right)
     expected = {}
     for f in (1, 10, 1, 10):
         scene.frame_set(f)
@@ -657,10 +660,7 @@ def test_a_handle_removed_from_python_leaves_a_valid_driver(addon, capfd):
 def test_render_animation_with_bone_parented_handle_disabled_in_renders(addon, tmp_path, quiet):
     import renders
     obj, left, right = rig_with_two_handles()
-    scene = bpy.context.scene
-    rigcoll = bpy.data.collections.new("Armature")
-    scene.collection.children.link(rigcoll)
-    armature_driving(right, rigcoll)
+    _, rigcoll = armature_driving(right)
     renders.camera_over((0.5, -1.0), 3.0)
     seen = renders.animation_frame(10, tmp_path, "shown")
     rest = renders.animation_frame(1, tmp_path, "rest")
@@ -673,9 +673,7 @@ def test_render_animation_with_bone_parented_handle_disabled_in_renders(addon, t
 def test_cli_bake_with_bone_parented_handle_excluded(addon, tmp_path, quiet):
     obj, left, right = rig_with_two_handles()
     scene = bpy.context.scene
-    rigcoll = bpy.data.collections.new("Armature")
-    scene.collection.children.link(rigcoll)
-    armature_driving(right, rigcoll)
+    _, rigcoll = armature_driving(right)
     expected = {}
     for f in (1, 10):
         scene.frame_set(f)
