@@ -93,7 +93,7 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
     """Shape Deform settings and state of one object."""
 
     is_bound: BoolProperty(name="Bound", description="The object is rigged", default=False, options=NOT_KEYABLE)
-    kind: StringProperty(name="Kind", description="What was rigged: MESH, IMAGE, CURVE or GREASEPENCIL",
+    kind: StringProperty(name="Kind", description="What was rigged: MESH, IMAGE, CURVE, GREASEPENCIL or TEXT",
                           options=NOT_KEYABLE)
     handles: CollectionProperty(type=SHAPEDEFORM_PG_handle, name="Handles",
                                 description="The rig's handles and pins, in the order they were added")

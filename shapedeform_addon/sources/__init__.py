@@ -18,7 +18,7 @@ Each source module offers the same functions:
 """
 
 from ..errors import RigError, with_article
-from . import curve, grease_pencil, image_plane, mesh
+from . import curve, grease_pencil, image_plane, mesh, text
 from .prepared import Prepared
 
 __all__ = ["RigError", "with_article", "type_name", "Prepared", "module_for", "kind_of"]
@@ -33,11 +33,11 @@ def type_name(obj):
 def module_for(obj):
     """The source module of an object (bound or not); RigError for kinds we cannot rig."""
     kind = obj.shapedeform.kind if obj.shapedeform.is_bound else kind_of(obj)
-    return {"MESH": mesh, "IMAGE": image_plane, "CURVE": curve, "GREASEPENCIL": grease_pencil}[kind]
+    return {"MESH": mesh, "IMAGE": image_plane, "CURVE": curve, "GREASEPENCIL": grease_pencil, "TEXT": text}[kind]
 
 
 def kind_of(obj):
-    """What kind of shape an unbound object is: MESH, IMAGE, CURVE or GREASEPENCIL."""
+    """What kind of shape an unbound object is: MESH, IMAGE, CURVE, GREASEPENCIL or TEXT."""
     if obj is None:
         raise RigError("No active object to rig")
     if obj.type == "MESH":
@@ -45,7 +45,6 @@ def kind_of(obj):
     if obj.type in {"CURVE", "GREASEPENCIL"}:
         return obj.type
     if obj.type == "FONT":
-        raise RigError(f"'{obj.name}' is a text object: convert it to a curve first (Object > Convert > Curve), "
-                       "then bind the curve")
+        return "TEXT"
     raise RigError(f"'{obj.name}' is {with_article(type_name(obj))} object: Shape Deform rigs meshes, curves, "
-                   "grease pencil and image planes")
+                   "text, grease pencil and image planes")

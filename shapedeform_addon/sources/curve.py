@@ -68,7 +68,11 @@ def _rings_and_strokes(curve, flat):
 
 def prepare(obj, settings):
     """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
-    curve = obj.data
+    return prepare_splines(obj, obj.data, settings)
+
+
+def prepare_splines(obj, curve, settings):
+    """The plane and graph of ``curve``'s splines (a curve's own data, or a text's outlines)."""
     rest = points(curve)
     if len(rest) == 0:
         raise RigError(f"'{obj.name}' has no control points")

@@ -49,6 +49,15 @@ def mesh_points(obj, mesh=None):
     return flat.reshape(-1, 3)
 
 
+def evaluated_vertices(obj):
+    """The vertices (n, 3) of the mesh Blender evaluates ``obj`` to (a curve's or text's too)."""
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = evaluated.to_mesh()
+    points = np.array([v.co for v in mesh.vertices])
+    evaluated.to_mesh_clear()
+    return points
+
+
 def evaluated_mesh_points(obj):
     depsgraph = bpy.context.evaluated_depsgraph_get()
     return mesh_points(obj, obj.evaluated_get(depsgraph).data)

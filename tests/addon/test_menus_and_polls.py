@@ -77,8 +77,9 @@ def test_bind_is_greyed_out_for_what_it_cannot_rig(addon):
     assert not bpy.ops.shapedeform.bind.poll()
     with pytest.raises(RuntimeError, match="light object: Shape Deform rigs meshes"):
         bpy.ops.shapedeform.bind()
-    bpy.ops.object.text_add()  # says how to make one it can rig
-    with pytest.raises(RuntimeError, match=r"text object: convert it to a curve first \(Object > Convert > Curve\)"):
+    bpy.ops.object.text_add()
+    bpy.context.object.data.body = "   "  # says why a text of spaces cannot be rigged
+    with pytest.raises(RuntimeError, match="shows no glyphs: type some text"):
         bpy.ops.shapedeform.bind()
     obj, _, _ = rig_with_two_handles()
     bpy.context.view_layer.objects.active = obj

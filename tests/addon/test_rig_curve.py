@@ -30,14 +30,6 @@ def curve_data_points(curve):
     return parts
 
 
-def evaluated_vertices(obj):
-    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    mesh = evaluated.to_mesh()
-    points = np.array([v.co for v in mesh.vertices])
-    evaluated.to_mesh_clear()
-    return points
-
-
 def text_curve(body="Ba"):
     bpy.ops.object.text_add()
     bpy.context.object.data.body = body
@@ -50,15 +42,15 @@ def test_text_curve_with_holes_follows_and_unbinds_exactly(addon, tmp_path):
     obj.name = "Text"
     rest = [p.copy() for p in curve_points(obj)]
     rest_cos = np.concatenate([p[:len(p)] for p in rest])
-    rest_shape = evaluated_vertices(obj)
+    rest_shape = checks.evaluated_vertices(obj)
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     lo, hi = rest_cos.min(axis=0), rest_cos.max(axis=0)
     checks.add_handle(obj, checks.world(obj, [lo[0], 0.5 * (lo[1] + hi[1]), 0]))
     handle = checks.add_handle(obj, checks.world(obj, [0.8 * lo[0] + 0.2 * hi[0], hi[1], 0]))
-    np.testing.assert_allclose(evaluated_vertices(obj), rest_shape, atol=1e-4)
+    np.testing.assert_allclose(checks.evaluated_vertices(obj), rest_shape, atol=1e-4)
     handle.location.x += 0.15
     bpy.context.view_layer.update()
-    posed = evaluated_vertices(obj)
+    posed = checks.evaluated_vertices(obj)
     assert np.all(np.isfinite(posed))
     checks.assert_in_front_only(rest_shape, posed, (0, 0, 1.0), float(np.linalg.norm(np.ptp(rest_shape, axis=0))))
     assert np.abs(posed - rest_shape).max() == pytest.approx(0.15, abs=0.05)
@@ -72,7 +64,7 @@ def test_text_curve_with_holes_follows_and_unbinds_exactly(addon, tmp_path):
     obj = bpy.data.objects["Text"]
     obj.shapedeform.handles[1].object.location.x -= 0.15
     bpy.context.view_layer.update()
-    np.testing.assert_allclose(evaluated_vertices(obj), rest_shape, atol=1e-4)
+    np.testing.assert_allclose(checks.evaluated_vertices(obj), rest_shape, atol=1e-4)
     bpy.context.view_layer.objects.active = obj
     assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
     assert all(a.tobytes() == b.tobytes() for a, b in zip(curve_points(obj), rest))
@@ -174,7 +166,7 @@ def test_a_straight_open_curve_is_swept_in_its_own_plane(addon, count):
     end.location.y += 0.5
     bpy.context.view_layer.update()
     assert obj.shapedeform.status == ""
-    rope = evaluated_vertices(obj)  # its bevel makes it a mesh
+    rope = checks.evaluated_vertices(obj)  # its bevel makes it a mesh
     assert np.all(np.isfinite(rope))
     assert rope[rope[:, 0] > 1.9, 1].mean() == pytest.approx(0.5, abs=0.05)
     assert np.abs(rope[rope[:, 0] < 0.1, 1]).max() < 0.1
@@ -221,12 +213,12 @@ def test_a_curve_moved_by_its_only_handle_moves_rigidly(addon, handle_type, dime
         obj = bpy.context.active_object
     obj.data.dimensions = dimensions
     obj.data.use_path = False
-    rest = evaluated_vertices(obj)
+    rest = checks.evaluated_vertices(obj)
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
     handle.location = (handle.location.x + 0.2, handle.location.y + 0.15, handle.location.z)
     bpy.context.view_layer.update()
-    posed = evaluated_vertices(obj)
+    posed = checks.evaluated_vertices(obj)
     assert posed.shape == rest.shape
     np.testing.assert_allclose(posed, rest + [0.2, 0.15, 0.0], atol=1e-4)
 
