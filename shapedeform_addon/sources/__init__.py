@@ -46,5 +46,8 @@ def kind_of(obj):
         return obj.type
     if obj.type == "FONT":
         return "TEXT"
+    if obj.type == "EMPTY" and obj.empty_display_type == "IMAGE":
+        raise RigError(f"'{obj.name}' is an image empty (a reference or background image), which has no "
+                       "geometry to deform: add the picture as a plane (Add > Image > Mesh Plane) and bind that")
     raise RigError(f"'{obj.name}' is {with_article(type_name(obj))} object: Shape Deform rigs meshes, curves, "
                    "text, grease pencil and image planes")

@@ -77,6 +77,9 @@ def test_bind_is_greyed_out_for_what_it_cannot_rig(addon):
     assert not bpy.ops.shapedeform.bind.poll()
     with pytest.raises(RuntimeError, match="light object: Shape Deform rigs meshes"):
         bpy.ops.shapedeform.bind()
+    bpy.ops.object.empty_add(type="IMAGE")  # a reference image: says how to make one it can rig
+    with pytest.raises(RuntimeError, match=r"image empty .*\(Add > Image > Mesh Plane\) and bind that"):
+        bpy.ops.shapedeform.bind()
     bpy.ops.object.text_add()
     bpy.context.object.data.body = "   "  # says why a text of spaces cannot be rigged
     with pytest.raises(RuntimeError, match="shows no glyphs: type some text"):
