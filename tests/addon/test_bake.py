@@ -15,7 +15,7 @@ from mathutils import Vector
 
 import rig_checks as checks
 from extension_under_test import ADDON_MODULE
-from test_rig_curve import curve_points, evaluated_vertices, text_curve
+from test_rig_curve import curve_points, text_curve
 from test_rig_grease_pencil import drawing_points
 from test_rig_mesh import grid
 
@@ -98,14 +98,29 @@ def test_curve_bake_plays_without_the_extension(addon):
     rest = np.concatenate([p[:, :3] for p in curve_points(obj)])
     low, high = rest[np.argmin(rest[:, 1])], rest[np.argmax(rest[:, 1])]
     rig(obj, low, high, (0.4, 0.0, 0.0))
-    expected = live(lambda: evaluated_vertices(obj))
+    expected = live(lambda: checks.evaluated_vertices(obj))
     assert np.abs(expected[6] - expected[1]).max() > 0.2
     bake = addon.shapedeform_addon.bake
     bake.bake_objects([obj], 1, 6)
     bake.bake_objects([obj], 1, 6)
     assert len(cage_keys(obj)) == 1 + len(FRAMES)
     assert obj.data.animation_data is None  # nothing keyed on the curve itself
-    assert_plays_without_extension(lambda: evaluated_vertices(obj), expected)
+    assert_plays_without_extension(lambda: checks.evaluated_vertices(obj), expected)
+
+
+def test_text_bake_plays_without_the_extension_and_the_text_stays_text(addon):
+    bpy.ops.object.text_add()
+    obj = bpy.context.active_object
+    obj.data.body = "I"
+    rest = checks.evaluated_vertices(obj)
+    low, high = rest[np.argmin(rest[:, 1])], rest[np.argmax(rest[:, 1])]
+    rig(obj, low, high, (0.4, 0.0, 0.0))
+    expected = live(lambda: checks.evaluated_vertices(obj))
+    assert np.abs(expected[6] - expected[1]).max() > 0.2
+    addon.shapedeform_addon.bake.bake_objects([obj], 1, 6)
+    assert len(cage_keys(obj)) == 1 + len(FRAMES)
+    assert obj.type == "FONT" and obj.data.body == "I" and obj.data.animation_data is None
+    assert_plays_without_extension(lambda: checks.evaluated_vertices(obj), expected)
 
 
 def test_grease_pencil_bake_moves_every_drawing_and_adds_none(addon):
@@ -583,7 +598,7 @@ def rigged_curve():
     obj = text_curve("I")
     rest = np.concatenate([p[:, :3] for p in curve_points(obj)])
     rig(obj, rest[np.argmin(rest[:, 1])], rest[np.argmax(rest[:, 1])], (0.4, 0.0, 0.0))
-    return obj, lambda: evaluated_vertices(obj)
+    return obj, lambda: checks.evaluated_vertices(obj)
 
 
 def rigged_grease_pencil():

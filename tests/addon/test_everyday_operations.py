@@ -15,7 +15,7 @@ from mathutils import Matrix, Vector
 
 import renders
 import rig_checks as checks
-from test_rig_curve import curve_points, evaluated_vertices, text_curve
+from test_rig_curve import curve_points, text_curve
 from test_rig_image_plane import import_picture
 from test_rig_mesh import grid
 
@@ -65,7 +65,7 @@ def evaluated(obj):
     if obj.type == "MESH":
         return checks.evaluated_mesh_points(obj).astype(np.float64)
     if obj.type == "CURVE":
-        return evaluated_vertices(obj)
+        return checks.evaluated_vertices(obj)
     return checks.evaluated_drawing_points(obj).astype(np.float64)
 
 

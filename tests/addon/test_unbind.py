@@ -8,7 +8,7 @@ import pytest
 
 import rig_checks as checks
 from test_bake import rig
-from test_rig_curve import curve_points, evaluated_vertices, text_curve
+from test_rig_curve import curve_points, text_curve
 from test_rig_grease_pencil import drawing_points
 from test_rig_mesh import grid, rig_with_two_handles
 
@@ -37,7 +37,7 @@ def make_mesh():
 def make_curve():
     obj = text_curve("I")
     rest = np.concatenate([p[:, :3] for p in curve_points(obj)])
-    return obj, rest[np.argmin(rest[:, 1])], rest[np.argmax(rest[:, 1])], lambda: evaluated_vertices(obj)
+    return obj, rest[np.argmin(rest[:, 1])], rest[np.argmax(rest[:, 1])], lambda: checks.evaluated_vertices(obj)
 
 
 def make_grease_pencil():
