@@ -149,7 +149,8 @@ def _draw_modifier_inputs(layout, obj):
         return
     modifier = modifiers[0]
     ids = nodes.input_identifiers(modifier.node_group)
-    name = nodes.ORDER_INPUT if obj.type == "GREASEPENCIL" else nodes.REFINE_INPUT if obj.type == "MESH" else None
+    # Refine cuts the faces a mesh, a filled curve or a text reaches its modifier with.
+    name = nodes.ORDER_INPUT if obj.type == "GREASEPENCIL" else nodes.REFINE_INPUT
     if name not in ids:
         return
     layout.prop(*compat.modifier_input_property(modifier, ids[name]), text=name)

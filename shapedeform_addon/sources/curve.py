@@ -13,13 +13,16 @@ which is mapped the same way).
 while it wrote poses into the curve; :func:`restore_legacy` gives them back.
 """
 
+import bpy
 import numpy as np
 
 from ...solver.outline import outline_graph
-from ...solver.rigging.outline import sample_bezier, with_area
+from ...solver.rigging.outline import refine_level, sample_bezier, with_area
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from ..errors import RigError
+from ..nodes import REFINE_INPUT
+from .mesh import edges, positions
 from .prepared import Prepared
 
 REST_PROPERTY = "sd_rest"
@@ -92,7 +95,17 @@ def prepare_splines(obj, curve, settings):
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
 
-    return Prepared(plane, graph)
+    return Prepared(plane, graph, modifier_inputs={REFINE_INPUT: _fill_refinement(obj, plane, graph)})
+
+
+def _fill_refinement(obj, plane, graph):
+    """Refine for the faces ``obj`` reaches its modifier with (a fill, a bevel; 0 when none)."""
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    fill = evaluated.to_mesh()
+    try:
+        return refine_level(plane.to_2d(positions(fill)), edges(fill), len(fill.polygons), graph)
+    finally:
+        evaluated.to_mesh_clear()
 
 
 def unbind(obj):

@@ -1,5 +1,5 @@
 """Outlines of Blender-style geometry: boundary loops of triangle meshes, sampled Bezier splines,
-and how well shaped a mesh's own triangles are.
+how well shaped a mesh's own triangles are, and how finely a fill must be cut to bend.
 
 The graph built from such an outline with a chosen number of points is
 :func:`solver.outline.outline_graph`.
@@ -11,7 +11,7 @@ import numpy as np
 
 from ..shapes import clean_ring
 
-__all__ = ["boundary_loops", "sample_bezier", "smallest_angles", "with_area"]
+__all__ = ["boundary_loops", "sample_bezier", "smallest_angles", "with_area", "refine_level"]
 
 
 def boundary_loops(triangles):
@@ -142,3 +142,38 @@ def with_area(rings):
             continue
         kept.append(ring)
     return kept
+
+
+def refine_level(points, edges, face_count, graph, most=6):
+    """How many times to subdivide a fill (a text's or filled curve's faces, which span the
+    shape from outline to outline) before it is mapped through the cage.
+
+    The cage's map is linear within each of its triangles, so a face bends only where it has
+    vertices: each level halves the fill's edges, until the longest is no longer than the
+    graph's spacing; but no further than leaves the fill with more faces than the cage has
+    triangles, as finer than the cage adds nothing.
+
+    Parameters
+    ----------
+    points : (n, 2) array_like
+        The fill's vertices, in the graph's plane.
+    edges : (k, 2) array_like of int
+    face_count : int
+        Faces of the fill (each level makes four of each).
+    graph : solver.Graph
+    most : int
+        The highest level the deformer offers.
+
+    Returns
+    -------
+    int
+        0 for a fill with no faces or no edge longer than the spacing.
+    """
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if face_count == 0 or len(edges) == 0:
+        return 0
+    points = np.asarray(points, dtype=np.float64)
+    longest = float(np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1).max())
+    needed = np.ceil(np.log2(max(longest / graph.spacing, 1.0)))
+    affordable = np.floor(np.log(max(len(graph.triangles) / face_count, 1.0)) / np.log(4.0))
+    return int(min(needed, affordable, most))

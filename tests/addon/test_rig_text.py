@@ -4,6 +4,7 @@
 import bpy
 import numpy as np
 import pytest
+import shapely
 
 import rig_checks as checks
 
@@ -102,9 +103,51 @@ def test_text_typed_after_binding_follows_the_pose(addon):
     # The letters already there did not move (the fill may triangulate them anew: compare as sets).
     nearest = np.linalg.norm(longer[:, None, :2] - posed[None, :, :2], axis=2).min(axis=0)
     assert nearest.max() < 1e-4
-    new, new_rest = (points[points[:, 0] > hi[0] + 0.05] for points in (longer, rest_t))
-    assert len(new) == len(new_rest) > 0
-    assert new[:, 1].mean() > new_rest[:, 1].mean() + 0.1  # carried up with the right side
+    new, new_rest = (points[points[:, 0] > hi[0] + 0.05, 1] for points in (longer, rest_t))
+    assert len(new) and len(new_rest)
+    assert new.min() > new_rest.min() + 0.1 and new.max() > new_rest.max() + 0.1  # carried up with the right side
+
+
+def refine(shapedeform, obj, level=None):
+    """The Refine input of ``obj``'s Shape Deform modifier; set first when ``level`` is given."""
+    modifier = shapedeform.rig_format.modifiers_of(obj)[0]
+    identifier = shapedeform.nodes.input_identifiers(modifier.node_group)["Refine"]
+    if level is not None:
+        shapedeform.compat.set_modifier_input(modifier, identifier, level)
+        obj.update_tag()
+        bpy.context.view_layer.update()
+    return shapedeform.compat.modifier_input(modifier, identifier)
+
+
+def test_a_letter_bends_with_its_rig(addon):
+    """Bfont's I is one quad from foot to head: mapped at its four corners it would stay a
+    straight bar while the rig bends it (0.14 off at mid height, 5% of its size). Bind refines
+    the text's fill to the cage's spacing, so its edge follows the bent cage."""
+    obj = text("I")
+    obj.data.size = 4.0
+    rest = checks.evaluated_vertices(obj)
+    assert len(rest) == 4
+    lo, hi = rest.min(axis=0), rest.max(axis=0)
+    middle_x, middle_y = 0.5 * (lo[:2] + hi[:2])
+    _, top = checks.bind_with_handles(obj, [middle_x, lo[1] + 0.1, 0], [middle_x, hi[1] - 0.1, 0])
+    top.location.x += 1.5
+    bpy.context.view_layer.update()
+    shapedeform = addon.shapedeform_addon
+    assert refine(shapedeform, obj) > 0
+
+    def shown_area():
+        evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        mesh = evaluated.to_mesh()
+        mesh.calc_loop_triangles()
+        tris = np.array([t.vertices[:] for t in mesh.loop_triangles])
+        points = np.array([v.co for v in mesh.vertices])[:, :2]
+        evaluated.to_mesh_clear()
+        return shapely.union_all(shapely.polygons(points[tris]))
+
+    shown = shown_area()
+    refine(shapedeform, obj, 6)  # the cage's own map, as finely as the modifier maps
+    bent = shown_area()
+    assert shown.symmetric_difference(bent).area < 0.01 * bent.area
 
 
 def test_add_handle_in_text_edit_mode_says_how(addon):
@@ -114,6 +157,23 @@ def test_add_handle_in_text_edit_mode_says_how(addon):
     with pytest.raises(RuntimeError, match="is text, which has no points to select: add handles in Object Mode"):
         bpy.ops.shapedeform.add_handle()
     assert obj.mode == "EDIT" and len(obj.shapedeform.handles) == 0
+
+
+def test_a_text_converted_to_a_curve_is_rigged_as_a_curve(addon):
+    """Convert > Curve keeps the rig working on the curve it makes, whose control points Edit
+    Mode can select for handles (the rig still took it for a text, which has none)."""
+    obj = text("Hi")
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.select_only(obj)
+    assert bpy.ops.object.convert(target="CURVE") == {"FINISHED"}
+    obj = bpy.context.active_object
+    assert obj.type == "CURVE" and obj.shapedeform.is_bound
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.curve.select_all(action="DESELECT")
+    obj.data.splines[0].bezier_points[0].select_control_point = True
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert len(obj.shapedeform.handles) == 1
 
 
 def test_a_text_of_spaces_is_refused_with_a_reason(addon):

@@ -153,12 +153,17 @@ def test_the_list_follows_a_handle_or_pin_made_active_in_the_viewport(addon):
 
 
 def test_panel_shows_the_modifier_option_for_the_kind_of_object(addon):
-    """Grease pencil: Stroke Order; a mesh: Refine (both inputs of the Shape Deform modifier)."""
+    """Grease pencil: Stroke Order; a mesh, a curve, a text: Refine (both inputs of the Shape
+    Deform modifier)."""
     shapedeform = addon.shapedeform_addon
     bpy.ops.object.grease_pencil_add(type="MONKEY")
     monkey = bpy.context.active_object
+    bpy.ops.object.text_add()
+    text = bpy.context.active_object
+    bpy.ops.curve.primitive_bezier_circle_add(location=(5.0, 0.0, 0.0))
+    curve = bpy.context.active_object
     mesh = grid()
-    for obj, name in ((monkey, "Stroke Order"), (mesh, "Refine")):
+    for obj, name in ((monkey, "Stroke Order"), (mesh, "Refine"), (text, "Refine"), (curve, "Refine")):
         bpy.context.view_layer.objects.active = obj
         assert bpy.ops.shapedeform.bind() == {"FINISHED"}
         modifier = shapedeform.rig_format.modifiers_of(obj)[0]

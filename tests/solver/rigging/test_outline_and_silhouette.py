@@ -6,7 +6,7 @@ import pytest
 import shapely
 
 from solver.rigging.handles import apply_affine
-from solver.rigging.outline import boundary_loops, sample_bezier, with_area
+from solver.rigging.outline import boundary_loops, refine_level, sample_bezier, with_area
 from solver.rigging.silhouette import image_cutout, map_by_triangles, stroke_silhouette
 from solver.shapes import shape_geometry
 
@@ -132,3 +132,20 @@ def test_with_area_leaves_out_rings_on_one_line():
     kept = with_area([line, square, line[:2]])
     assert len(kept) == 1 and kept[0] is square
 
+
+@pytest.mark.parametrize("height", [0.5, 2.0, 7.0])
+def test_refine_level_cuts_a_fill_to_the_graphs_spacing_within_the_cages_resolution(height):
+    """A rectangle filled by two triangles spanning it (as a text's letter is), rigged by a graph
+    of its outline: each level halves the fill's edges; it stops where the longest is no longer
+    than the graph's spacing, or where the fill would have more faces than the cage."""
+    from solver.outline import outline_graph
+
+    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, height], [0.0, height]])
+    graph = outline_graph([corners], 300)
+    edges = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [0, 2]])
+    level = refine_level(corners, edges, 2, graph)
+    longest = np.hypot(1.0, height)
+    assert 2 * 4 ** level <= len(graph.triangles)
+    assert longest / 2 ** level <= graph.spacing or 2 * 4 ** (level + 1) > len(graph.triangles)
+    assert level == 0 or longest / 2 ** (level - 1) > graph.spacing  # no finer than needed
+    assert refine_level(corners, edges, 0, graph) == 0  # edges alone (an unfilled curve)
