@@ -8,10 +8,12 @@ The graph built from such an outline with a chosen number of points is
 from __future__ import annotations
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from ..shapes import clean_ring
 
-__all__ = ["boundary_loops", "sample_bezier", "smallest_angles", "with_area", "refine_level"]
+__all__ = ["boundary_loops", "sample_bezier", "smallest_angles", "with_area", "wound_alike", "refine_level"]
 
 
 def boundary_loops(triangles):
@@ -20,6 +22,8 @@ def boundary_loops(triangles):
     Parameters
     ----------
     triangles : (t, 3) array_like of int
+        In any winding: a face wound against its neighbours (a normal flipped in Blender) is
+        turned to match them first.
 
     Returns
     -------
@@ -35,10 +39,8 @@ def boundary_loops(triangles):
     triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     if len(triangles) == 0:
         raise ValueError("it has no faces")
-    directed = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    undirected = np.sort(directed, axis=1)
-    _, inverse, counts = np.unique(undirected, axis=0, return_inverse=True, return_counts=True)
-    boundary = directed[counts[inverse.ravel()] == 1]
+    directed, edge, counts = _edge_uses(wound_alike(triangles))
+    boundary = directed[counts[edge] == 1]
     if len(boundary) == 0:
         raise ValueError("it has no boundary (a closed surface is not a flat shape)")
     starts, ends = boundary[:, 0], boundary[:, 1]
@@ -59,6 +61,53 @@ def boundary_loops(triangles):
             current = nxt
         loops.append(np.array(loop, dtype=np.int64))
     return loops
+
+
+def wound_alike(triangles):
+    """The triangles with every piece wound one way, as Blender's Recalculate Normals does.
+
+    Two triangles sharing an edge are wound alike when they run it in opposite directions. The
+    winding is fixed by the mesh's connections alone, not by the plane, so a face that is flat
+    in the plane (its corners on one line) or lies folded over its neighbours follows them too.
+
+    Parameters
+    ----------
+    triangles : (t, 3) array_like of int
+
+    Returns
+    -------
+    (t, 3) int64 ndarray
+        The same triangles, some with two corners swapped. Pieces joined only through an edge
+        of three or more triangles, or at a corner, are wound independently; a piece that
+        cannot be wound one way (a Moebius strip) is left as it is.
+    """
+    triangles = np.array(triangles, dtype=np.int64).reshape(-1, 3)
+    t = len(triangles)
+    directed, edge, counts = _edge_uses(triangles)
+    shared = np.flatnonzero(counts[edge] == 2)
+    uses = shared[np.argsort(edge[shared], kind="stable")].reshape(-1, 2)  # an edge's two uses
+    first, second = uses[:, 0] % t, uses[:, 1] % t  # the triangle of each use
+    alike = directed[uses[:, 0], 0] != directed[uses[:, 1], 0]
+    # Node f is triangle f as wound, node f + t the same triangle turned over; a shared edge joins
+    # the two nodes that agree. Each piece splits into two components, one per consistent
+    # winding: keep, for every triangle, the winding in the component with the lower label.
+    partner = np.where(alike, second, second + t)
+    rows = np.concatenate([first, first + t])
+    cols = np.concatenate([partner, (partner + t) % (2 * t)])
+    cover = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(2 * t, 2 * t))
+    label = connected_components(cover, directed=False)[1]
+    turn = label[:t] > label[t:]
+    triangles[turn] = triangles[turn][:, ::-1]
+    return triangles
+
+
+def _edge_uses(triangles):
+    """Each triangle's edges as it runs them, (3 t, 2) (the t first edges, then the t second
+    ones, then the third), which undirected edge each is (3 t,), and how many triangles use
+    each undirected edge (e,)."""
+    directed = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    _, edge, counts = np.unique(np.sort(directed, axis=1), axis=0, return_inverse=True, return_counts=True)
+    return directed, edge.ravel(), counts
 
 
 def sample_bezier(points, left, right, cyclic, resolution=12):

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Rigging planar meshes: bind, handles, live posing, save and reopen, unbind exactly."""
 
+import bmesh
 import bpy
 import numpy as np
 import pytest
@@ -264,23 +265,42 @@ def test_a_mesh_whose_faces_share_no_vertices_deforms_as_one_piece(addon):
     np.testing.assert_array_equal(checks.mesh_points(unwelded), before)
 
 
-def test_a_puppets_overlapping_islands_move_apart(addon):
-    """A cut-out puppet modelled as one mesh: an arm island lying over the body island, some of
-    its vertices on the body's. Its graph is the mesh itself; the arm dragged up takes all its
-    own vertices along and none of the body's (those under the arm jumped with it, and the arm's
-    over the body stayed behind, where the modifier looked points up by their place)."""
-    def quads(nx, ny, width, height, x0, y0, start):
-        verts = [(x0 + width * i / nx, y0 + height * j / ny, 0.0) for j in range(ny + 1) for i in range(nx + 1)]
-        faces = [[start + j * (nx + 1) + i + k for k in (0, 1, nx + 2, nx + 1)] for j in range(ny) for i in range(nx)]
-        return verts, faces
+def quads(nx, ny, width, height, x0, y0, start):
+    """Vertices and quads of an ``nx`` x ``ny`` grid from (x0, y0), numbered from ``start``."""
+    verts = [(x0 + width * i / nx, y0 + height * j / ny, 0.0) for j in range(ny + 1) for i in range(nx + 1)]
+    faces = [[start + j * (nx + 1) + i + k for k in (0, 1, nx + 2, nx + 1)] for j in range(ny) for i in range(nx)]
+    return verts, faces
 
+
+def puppet():
+    """A cut-out puppet modelled as one mesh: a body island (8 x 4 quads) and an arm island
+    lying over it, some of its vertices on the body's: (object, body vertex count, arm faces)."""
     body, body_faces = quads(8, 4, 2.0, 1.0, 0.0, 0.0, 0)
     arm, arm_faces = quads(6, 2, 1.8, 0.4, 1.2, 0.3, len(body))
-    mesh = bpy.data.meshes.new("Puppet")
-    mesh.from_pydata(body + arm, [], body_faces + arm_faces)
-    obj = bpy.data.objects.new("Puppet", mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    bpy.context.view_layer.objects.active = obj
+    obj = flat_mesh("Puppet", [v[:2] for v in body + arm], body_faces + arm_faces)
+    return obj, len(body), range(len(body_faces), len(body_faces) + len(arm_faces))
+
+
+def wind_the_other_way(obj, faces):
+    """Reverse the winding of ``faces`` (indices), as a flipped normal shows in Blender."""
+    bm = bmesh.new()
+    bm.from_mesh(obj.data)
+    bm.faces.ensure_lookup_table()
+    bmesh.ops.reverse_faces(bm, faces=[bm.faces[i] for i in faces])
+    bm.to_mesh(obj.data)
+    bm.free()
+
+
+@pytest.mark.parametrize("flipped", ["none", "one arm face"])
+def test_a_puppets_overlapping_islands_move_apart(addon, flipped):
+    """The puppet's graph is the mesh itself; the arm dragged up takes all its own vertices
+    along and none of the body's (those under the arm jumped with it, and the arm's over the
+    body stayed behind, where the modifier looked points up by their place). With one arm face
+    wound the other way, its boundary read as pinched and the graph was built from the faces'
+    union, which merged the arm into the body: the body moved up to 0.73 with the hand."""
+    obj, n_body, arm_faces = puppet()
+    if flipped == "one arm face":
+        wind_the_other_way(obj, arm_faces[-1:])
     rest = checks.mesh_points(obj).copy()
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert len(obj.shapedeform.cage.data.vertices) == len(rest)  # the mesh is its own graph
@@ -288,9 +308,30 @@ def test_a_puppets_overlapping_islands_move_apart(addon):
     hand = checks.add_handle(obj, (3.0, 0.5, 0.0))
     hand.location.y += 1.0
     bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
     moved = (checks.evaluated_mesh_points(obj) - rest)[:, :2]  # the arm also lifts in front
-    np.testing.assert_allclose(moved[:len(body)], 0.0, atol=1e-4)
-    np.testing.assert_allclose(moved[len(body):], np.tile([0.0, 1.0], (len(arm), 1)), atol=1e-4)
+    np.testing.assert_allclose(moved[:n_body], 0.0, atol=1e-4)
+    np.testing.assert_allclose(moved[n_body:], np.tile([0.0, 1.0], (len(rest) - n_body, 1)), atol=1e-4)
+
+
+def test_a_face_wound_the_other_way_changes_nothing(addon):
+    """A grid with one face wound against the others (Blender shows its normal flipped; every
+    edge is still used by one or two faces): Graph: Mesh refused it as "not manifold", and
+    Automatic rigged its outline instead of the mesh, posing it up to 0.14 away. Both now rig
+    the mesh itself and pose it as the same grid wound one way."""
+    poses = {}
+    for name, flipped, mode in (("Grid", [], "AUTO"), ("Flipped", [0], "OWN"), ("Flipped auto", [0], "AUTO")):
+        obj = grid(name)
+        wind_the_other_way(obj, flipped)
+        obj.shapedeform.graph_mode = mode
+        _, right = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
+        assert len(obj.shapedeform.cage.data.vertices) == len(obj.data.vertices)
+        right.location.y += 0.5
+        bpy.context.view_layer.update()
+        assert obj.shapedeform.status == ""
+        poses[name] = checks.evaluated_mesh_points(obj)
+    np.testing.assert_allclose(poses["Flipped"], poses["Grid"], atol=1e-4)
+    np.testing.assert_allclose(poses["Flipped auto"], poses["Grid"], atol=1e-4)
 
 
 def test_pixels_touching_at_corners_are_rigged_by_their_outline(addon):

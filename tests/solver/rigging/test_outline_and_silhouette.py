@@ -6,7 +6,7 @@ import pytest
 import shapely
 
 from solver.rigging.handles import apply_affine
-from solver.rigging.outline import boundary_loops, refine_level, sample_bezier, with_area
+from solver.rigging.outline import boundary_loops, refine_level, sample_bezier, with_area, wound_alike
 from solver.rigging.silhouette import image_cutout, map_by_triangles, stroke_silhouette
 from solver.shapes import shape_geometry
 
@@ -25,6 +25,36 @@ def test_boundary_loops_of_a_grid_with_a_hole():
     keep = ~np.isin(np.arange(len(triangles)), [4, 13])
     loops = boundary_loops(triangles[keep])
     assert sorted(len(loop) for loop in loops) == [4, 12]
+
+
+def test_faces_wound_against_their_neighbours_leave_the_boundary_as_it_is():
+    """A face wound the other way (a normal flipped in Blender) on the boundary of a grid with
+    a hole: the same loops as the grid wound one way (it read as a pinched boundary). Several
+    faces turned, in either piece (the second wound the other way throughout), change nothing."""
+    grid = grid_triangles(3, 3)
+    holed = grid[~np.isin(np.arange(len(grid)), [4, 13])]
+    other = grid + holed.max() + 1
+    triangles = np.concatenate([holed, other[:, ::-1]])
+    expected = sorted(sorted(loop.tolist()) for loop in boundary_loops(triangles))
+    for flipped in ([0], [0, 5, 20], [0, len(holed)]):
+        mixed = triangles.copy()
+        mixed[flipped] = mixed[flipped][:, ::-1]
+        assert sorted(sorted(loop.tolist()) for loop in boundary_loops(mixed)) == expected
+        # Every shared edge is run both ways: each piece is wound one way.
+        directed = np.concatenate([wound_alike(mixed)[:, [k, (k + 1) % 3]] for k in range(3)])
+        assert len(np.unique(directed, axis=0)) == len(directed)
+
+
+def test_a_flat_face_follows_its_neighbours_winding():
+    """A face whose corners lie on one line (no winding in the plane) on the boundary of a
+    strip wound against the plane's own orientation: it keeps the strip's winding."""
+    strip = np.array([[0, 2, 1], [1, 2, 3], [1, 3, 4]])  # 4 lies between 1 and 3: flat
+    assert np.array_equal(wound_alike(strip), strip)
+    for flipped in ([2], [0, 1]):
+        mixed = strip.copy()
+        mixed[flipped] = mixed[flipped][:, ::-1]
+        fixed = wound_alike(mixed)
+        assert np.array_equal(fixed, strip) or np.array_equal(fixed, strip[:, ::-1])
 
 
 def test_boundary_loops_refuse_closed_and_nonmanifold():
