@@ -85,7 +85,8 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     """Add a handle at a world ``location`` (projected onto the shape's plane).
 
     The handle owns the graph points near the place on the rest shape that is now under
-    ``location`` (or, with ``on_rest``, that ``location`` is at on the unposed shape); their
+    ``location`` (or, with ``on_rest``, that ``location`` is at on the unposed shape), on the
+    piece of the graph nearest that place (islands that overlap stay apart); their
     offsets are taken from their current (posed) positions, so adding a handle does not move
     the shape.
 
@@ -124,7 +125,8 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     taken = np.zeros(graph.n, dtype=bool)
     taken[rig.indices] = True
     try:
-        region = select_region(graph.points, rest_centre, settings.region_size * graph.size, taken)
+        region = select_region(graph.points, rest_centre, settings.region_size * graph.size, taken,
+                               pieces=graph.components())
     except ValueError as err:  # every point is taken
         raise NoPointsLeft(f"{err} (lower Handle Region, or bind again with a higher Graph Density for more "
                            "points)") from None

@@ -100,7 +100,7 @@ def invert_affine(affine):
     return np.linalg.inv(affine)
 
 
-def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS):
+def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS, pieces=None):
     """Graph points a handle at ``centre`` owns.
 
     Parameters
@@ -115,6 +115,10 @@ def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS)
         Points already owned by other handles: never selected (the deformer takes each point as
         a handle once).
     minimum : int
+    pieces : (n,) array_like of int, optional
+        Which piece of the shape each point is on (:meth:`solver.Graph.components`): the region
+        stays on the piece of the point nearest ``centre``, so a handle on a puppet's arm lying
+        over its body takes none of the body's points. Without it, any point near enough.
 
     Returns
     -------
@@ -124,16 +128,21 @@ def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS)
     Raises
     ------
     ValueError
-        Every point is taken.
+        Every point (of the piece, with ``pieces``) is taken.
     """
     points = np.asarray(points, dtype=np.float64)
     distance = np.linalg.norm(points - np.asarray(centre, dtype=np.float64), axis=1)
+    if pieces is not None:
+        pieces = np.asarray(pieces)
+        distance = np.where(pieces == pieces[np.argmin(distance)], distance, np.inf)
     if taken is not None:
         distance = np.where(np.asarray(taken, dtype=bool), np.inf, distance)
     order = np.argsort(distance, kind="stable")
     free = int(np.isfinite(distance).sum())
     if free == 0:
-        raise ValueError("every point of the shape already belongs to a handle")
+        whole = taken is None or bool(np.all(taken))  # else only the piece there is full
+        raise ValueError(f"every point of {'the shape' if whole else 'this piece of the shape'} already belongs "
+                         "to a handle")
     inside = int((distance < radius).sum())
     count = min(max(inside, minimum), free)
     if count > inside:

@@ -314,6 +314,33 @@ def test_a_puppets_overlapping_islands_move_apart(addon, flipped):
     np.testing.assert_allclose(moved[n_body:], np.tile([0.0, 1.0], (len(rest) - n_body, 1)), atol=1e-4)
 
 
+def test_a_handle_at_a_selected_arm_vertex_over_the_body_moves_the_arm_only(addon):
+    """Edit Mode, the puppet at rest: a handle added at one selected vertex of the arm, where
+    the arm lies over the body, holds the arm alone. Its region took every graph point within
+    its radius, the body's under it too, and moving the handle 0.3 tore 41 body points along."""
+    obj, n_body, _ = puppet()
+    rest = checks.mesh_points(obj).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, (0.0, 0.5, 0.0))  # the body's left end
+    checks.add_handle(obj, (3.0, 0.5, 0.0))  # the arm's hand
+    elbow = n_body + int(np.argmin(np.linalg.norm(rest[n_body:, :2] - [1.8, 0.3], axis=1)))
+    assert np.linalg.norm(rest[:n_body, :2] - rest[elbow, :2], axis=1).min() < 0.1  # the body's near
+    checks.select_only(obj)
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="DESELECT")
+    bpy.ops.object.mode_set(mode="OBJECT")
+    obj.data.vertices[elbow].select = True
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    obj.shapedeform.handles[-1].object.location.y += 0.3
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    moved = np.linalg.norm((checks.evaluated_mesh_points(obj) - rest)[:, :2], axis=1)
+    assert moved[elbow] == pytest.approx(0.3, abs=1e-3)
+    np.testing.assert_allclose(moved[:n_body], 0.0, atol=1e-4)
+
+
 def test_a_face_wound_the_other_way_changes_nothing(addon):
     """A grid with one face wound against the others (Blender shows its normal flipped; every
     edge is still used by one or two faces): Graph: Mesh refused it as "not manifold", and

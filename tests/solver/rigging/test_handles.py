@@ -64,6 +64,29 @@ def test_select_region_respects_radius_minimum_and_taken():
         select_region(points, [0, 0], 1.0, taken=np.ones(32, bool))
 
 
+def test_a_region_stays_on_the_piece_of_the_point_nearest_its_centre():
+    """Two pieces lying over one another (a puppet's arm over its body): a region centred on
+    the arm takes none of the body's points, however large its radius, and when the arm's
+    points are all taken it says so rather than taking the body's."""
+    def grid(nx, ny, width, height, x0, y0):
+        x, y = np.meshgrid(np.linspace(x0, x0 + width, nx + 1), np.linspace(y0, y0 + height, ny + 1))
+        return np.column_stack([x.ravel(), y.ravel()])
+
+    body, arm = grid(8, 4, 2.0, 1.0, 0.0, 0.0), grid(6, 2, 1.8, 0.4, 1.2, 0.3)
+    points = np.concatenate([body, arm])
+    pieces = np.repeat([0, 1], [len(body), len(arm)])
+    elbow = len(body) + 2  # at (1.8, 0.3), 0.07 from the body's point (1.75, 0.25)
+    assert np.any(pieces[select_region(points, points[elbow], 0.2)] == 0)  # without pieces: both
+    for centre in points[[elbow, len(body), -1]]:
+        for radius in (0.0, 0.2, 10.0):
+            region = select_region(points, centre, radius, pieces=pieces)
+            assert np.all(pieces[region] == 1), (centre, radius)
+            assert len(region) >= 3
+    assert len(select_region(points, points[elbow], 10.0, pieces=pieces)) == len(arm)
+    with pytest.raises(ValueError, match="every point of this piece of the shape already belongs"):
+        select_region(points, points[elbow], 0.2, taken=pieces == 1, pieces=pieces)
+
+
 @pytest.mark.parametrize("scale, offset", [(1.0, 0.0), (0.1, 0.0), (1.0, 1e3), (7.3, -40.0)])
 def test_select_region_takes_every_point_tied_with_the_last(scale, offset):
     """On a grid a vertex's four neighbours are equally near: a region of at least three takes
