@@ -24,6 +24,7 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty
 
+from ..solver.wording import by_count
 from . import compat, handlers, rig, rig_format
 from .errors import RigError, poll_reason
 
@@ -297,6 +298,12 @@ class Bake:
             return True
         return not rig.pose_safely(obj, depsgraph, final=True)
 
+    def summary(self):
+        """What a finished bake did, for the status bar ("Baked 24 frames of 1 object")."""
+        frames, objects = self.total, len(self.objects)
+        return (f"Baked {frames} {by_count(frames, 'frame', 'frames')} of {objects} "
+                f"{by_count(objects, 'object', 'objects')}")
+
     def _restore_frame(self):
         self.scene.frame_set(self.original_frame[0], subframe=self.original_frame[1])
 
@@ -445,7 +452,7 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
             raise
         finally:
             wm.progress_end()
-        self.report({"INFO"}, f"Baked {baker.total} frames of {len(baker.objects)} object(s)")
+        self.report({"INFO"}, baker.summary())
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -491,7 +498,7 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
         if not finished:
             return {"RUNNING_MODAL"}
         self._end(context)
-        self.report({"INFO"}, f"Baked {self.baker.total} frames of {len(self.baker.objects)} object(s)")
+        self.report({"INFO"}, self.baker.summary())
         return {"FINISHED"}
 
 

@@ -14,6 +14,7 @@ import numpy as np
 from bpy.props import EnumProperty, FloatVectorProperty, StringProperty
 
 from ..solver.rigging.plane import affine_inverse, transform_points
+from ..solver.wording import by_count
 from . import binding, handles, rig, rig_format, sources
 from .errors import RigError, poll_reason
 from .properties import PIN_KINDS
@@ -221,7 +222,8 @@ class SHAPEDEFORM_OT_make_handles_editable(bpy.types.Operator):
         locked = handles.locked_by_override(owner)
         for empty in locked:
             empty.override_library.is_system_override = False
-        self.report({"INFO"}, f"Made {len(locked)} handle(s) of '{owner.name}' editable")
+        self.report({"INFO"}, f"Made {len(locked)} {by_count(len(locked), 'handle', 'handles')} of '{owner.name}' "
+                              "editable")
         return {"FINISHED"}
 
 

@@ -71,9 +71,7 @@ class Rig:
                                             coarse_copies=self.coarse_copies, stiffness=stiffness) \
                 if len(self.indices) else None
         except solver.UncoveredPoints as err:
-            raise RigError(f"'{obj.name}': with these energy weights {err.count} points are in no term and nothing "
-                           f"decides where they go; give {' or '.join(map(_weight_label, err.terms))} a positive "
-                           "weight") from None
+            raise RigError(f"'{obj.name}': {err.explain(_weight_label)}") from None
         except ValueError as err:
             raise RigError(f"'{obj.name}': {_in_interface_terms(err)}") from None
         overlap = rig_format.pin_items(obj, "OVERLAP")

@@ -40,6 +40,8 @@ from typing import NamedTuple
 import numpy as np
 from scipy.sparse import coo_matrix, diags, vstack
 
+from .wording import by_count
+
 __all__ = ["DEFAULT_WEIGHTS", "DENSITY_EXPONENTS", "Energy", "LocalFit", "UncoveredPoints", "mean_value_weights",
            "similarity_rows", "uncovered_points"]
 
@@ -415,8 +417,15 @@ class UncoveredPoints(ValueError):
 
     def __init__(self, count, terms):
         self.count, self.terms = count, terms
-        super().__init__(f"with these weights {count} points are in no energy term and nothing decides where "
-                         f"they go; give {' or '.join(map(repr, terms))} a positive weight")
+        super().__init__(self.explain())
+
+    def explain(self, weight_name=repr):
+        """The refusal, each weight named by ``weight_name`` (a term's key to its name as the
+        caller shows it; quoted keys by default)."""
+        count = self.count
+        return (f"with these weights {count} {by_count(count, 'point is', 'points are')} in no energy term and "
+                f"nothing decides where {by_count(count, 'it goes', 'they go')}; give "
+                f"{' or '.join(map(weight_name, self.terms))} a positive weight")
 
 
 def uncovered_points(energy, points):

@@ -20,6 +20,7 @@ from scipy.spatial import cKDTree
 from .shapes import geometry_rings, nesting_depth, shape_geometry, signed_area
 from .triangulate import (conforming_triangulation, edges_of_triangles, filtered_delaunay,
                           orient_counter_clockwise)
+from .wording import by_count
 
 __all__ = ["Graph", "build_graph", "default_spacing", "spacing_for"]
 
@@ -104,7 +105,8 @@ class Graph:
         self.edges = np.unique(edges, axis=0)
         lonely = np.setdiff1d(np.arange(n), self.edges.ravel())
         if len(lonely):
-            raise ValueError(f"point {lonely[0]} has no edges ({len(lonely)} such points)")
+            raise ValueError(f"point {lonely[0]} has no edges ({len(lonely)} "
+                             f"{by_count(len(lonely), 'such point', 'such points')})")
 
         on_boundary = np.zeros(n, dtype=bool)
         on_boundary[self.boundary] = True

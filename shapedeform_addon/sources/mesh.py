@@ -16,6 +16,7 @@ from ... import solver
 from ...solver.outline import outline_graph
 from ...solver.shapes import geometry_rings
 from ...solver.triangulate import triangle_cross
+from ...solver.wording import by_count
 from ...solver.rigging.outline import boundary_loops, smallest_angles, with_area
 from ...solver.rigging.plane import fit_plane
 from ..errors import RigError
@@ -129,7 +130,9 @@ def prepare(obj, settings):
             if pinched is not None:
                 raise ValueError(f"{pinched}; use the Outline graph")
             if not on_faces.all():
-                raise ValueError(f"{int((~on_faces).sum())} vertices are on no face; use the Outline graph")
+                loose = int((~on_faces).sum())
+                raise ValueError(f"{loose} {by_count(loose, 'vertex is', 'vertices are')} on no face; use the "
+                                 "Outline graph")
             graph = solver.Graph(flat, mesh_edges, loops, tris)
         else:
             if pinched is None:

@@ -193,6 +193,22 @@ def test_add_handles_at_selected_vertices(addon):
     np.testing.assert_allclose([h.matrix_world.translation for h in handles], expected, atol=1e-6)
 
 
+@pytest.mark.parametrize("loose, message", [(1, "1 vertex is on no face"), (2, "2 vertices are on no face")])
+def test_graph_mesh_refuses_vertices_on_no_face_and_says_how_many(addon, loose, message):
+    """Graph: Mesh on a grid with loose vertices beside it names them in agreement with their
+    count ("1 vertices are on no face" was said of one) and changes nothing."""
+    obj = grid()
+    obj.data.vertices.add(loose)
+    for i, vertex in enumerate(obj.data.vertices[-loose:]):
+        vertex.co = (1.5, 0.1 * i, 0.0)
+    obj.data.update()
+    obj.shapedeform.graph_mode = "OWN"
+    before = checks.snapshot()
+    with pytest.raises(RuntimeError, match=f"{message}; use the Outline graph"):
+        bpy.ops.shapedeform.bind()
+    assert checks.snapshot() == before
+
+
 @pytest.mark.parametrize("make, message", [
     (lambda: bpy.data.meshes.new("Empty"), "no vertices"),
     ("cube", "not planar"),

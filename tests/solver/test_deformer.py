@@ -503,6 +503,11 @@ def test_weights_that_leave_points_free_are_refused(horse_graph, horse_drag):
     with pytest.raises(solver.UncoveredPoints) as refused:
         solver.Deformer(grid, np.array([5, 6]), weights={"laplacian": 0.0})
     assert refused.value.terms == ["laplacian"] and refused.value.count >= 1
+    # The message agrees with the count.
+    assert "with these weights 1 point is in no energy term and nothing decides where it goes; give 'laplacian'" \
+        in str(solver.UncoveredPoints(1, ["laplacian"]))
+    assert "4 points are in no energy term and nothing decides where they go; give 'mvc' or 'edge'" \
+        in str(solver.UncoveredPoints(4, ["mvc", "edge"]))
     # Tiny local-area weights are fine (the paper's Figure 3, right, without local area).
     pose = solver.Deformer(horse_graph, handles, weights={"mvc": 1e-3, "edge": 1e-3}).solve(targets)
     assert np.all(np.isfinite(pose.positions))

@@ -49,8 +49,10 @@ def test_mean_value_coordinates_reproduce_interior_points(horse_graph):
 
 def test_graph_validation():
     points = np.array([[0, 0], [1, 0], [0, 1], [5, 5]], float)
-    with pytest.raises(ValueError, match="no edges"):
+    with pytest.raises(ValueError, match=r"point 3 has no edges \(1 such point\)"):
         solver.Graph(points, [[0, 1]], [[0, 1, 2]])
+    with pytest.raises(ValueError, match=r"point 3 has no edges \(2 such points\)"):
+        solver.Graph(np.concatenate([points, [[6, 6]]]), [[0, 1]], [[0, 1, 2]])
     with pytest.raises(ValueError, match="non-finite"):
         solver.Graph(np.full((3, 2), np.nan), [], [[0, 1, 2]])
     with pytest.raises(ValueError, match="do not exist"):
