@@ -1,9 +1,10 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Curves: Bezier and poly splines, several of them (text converted to a curve has holes).
 
-Closed splines bound the shape; control points and both Bezier handles of every spline are
-bound to its graph, so open splines follow the shape they lie in. A curve with no closed spline
-is rigged inside a silhouette swept around its splines. Points are ordered spline after spline:
+Closed splines bound the shape, and so does a silhouette swept around open splines where they lie
+outside the closed ones (a tail beside a body, or a curve of open splines alone). Control points
+and both Bezier handles of every spline are bound to its graph, so an open spline drawn inside a
+closed one (a detail line) follows the part it lies in. Points are ordered spline after spline:
 a Bezier spline gives its control points, then left handles, then right handles; a poly or NURBS
 spline its points. The curve is never written: its Shape Deform modifier maps control points
 and handles (a filled, bevelled or text curve reaches the modifier as its tessellated mesh,
@@ -26,8 +27,8 @@ from .mesh import edges, positions
 from .prepared import Prepared
 
 REST_PROPERTY = "sd_rest"
-# Sweep radius around open splines when no spline is closed, as a fraction of the curve's size
-# (or the bevel depth when that is larger).
+# Sweep radius around open splines, as a fraction of the curve's size (or the bevel depth when
+# that is larger).
 SWEEP_FRACTION = 0.02
 
 
@@ -84,13 +85,16 @@ def prepare_splines(obj, curve, settings):
         plane = fit_plane(rest, line_normal=(0.0, 0.0, 1.0))
         flat = plane.to_2d(rest)
         rings, strokes = _rings_and_strokes(curve, flat)
-        # A closed spline round no area (its points on one line) is left out, unless all are.
-        rings = with_area(rings) or rings
-        if not rings:
+        # A closed spline round no area (its points on one line) is left out; when all are and
+        # no spline is open, the graph refuses them.
+        areas = with_area(rings)
+        if strokes:
             size = float(np.linalg.norm(np.ptp(flat, axis=0)))
             radius = max(curve.bevel_depth, SWEEP_FRACTION * size)
             offsets = np.concatenate([[0], np.cumsum([len(s) for s in strokes])])
-            rings = stroke_silhouette(np.concatenate(strokes), offsets, np.full(offsets[-1], radius))
+            rings = stroke_silhouette(np.concatenate(strokes), offsets, np.full(offsets[-1], radius), areas=areas)
+        else:
+            rings = areas or rings
         graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None

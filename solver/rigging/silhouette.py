@@ -1,9 +1,9 @@
 """Silhouettes of drawings and pictures: the area a stroke drawing or an image covers.
 
-A stroke drawing (grease pencil, open curves) covers the union of its strokes, each swept by its
-radius, and of the areas its closed, filled strokes enclose. A picture covers its opaque pixels;
-its cut-out is that silhouette grown by a margin so no visible pixel is lost, then clipped to
-the picture.
+A stroke drawing (grease pencil, a curve's open splines) covers the union of its strokes, each
+swept by its radius, and of the areas its closed, filled strokes (or a curve's closed splines)
+enclose. A picture covers its opaque pixels; its cut-out is that silhouette grown by a margin so
+no visible pixel is lost, then clipped to the picture.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from ..trace import coverage, trace_silhouette
 __all__ = ["stroke_silhouette", "image_cutout", "map_by_triangles"]
 
 
-def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, tolerance=None):
-    """The area covered by strokes drawn with a round pen.
+def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, tolerance=None, areas=()):
+    """The area covered by strokes drawn with a round pen, and by ``areas``.
 
     Parameters
     ----------
@@ -36,6 +36,11 @@ def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, toler
     tolerance : float, optional
         Simplify the outline by this distance (default: a twentieth of the smallest radius used,
         which loses well under 1% of the area of round ends).
+    areas : sequence of (k, 2) array_like, optional
+        Rings of areas covered as they are (a curve's closed splines), nested by containment (a
+        ring inside another is a hole: see :func:`solver.shapes.shape_geometry`). Strokes are
+        swept only where they lie outside them, so a line drawn inside an area (a detail on a
+        filled shape) leaves its outline as it is.
 
     Returns
     -------
@@ -45,7 +50,7 @@ def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, toler
     Raises
     ------
     ValueError
-        No strokes, non-finite input, or strokes that cover no area.
+        No strokes, non-finite input, strokes that cover no area, or a malformed area ring.
     """
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     offsets = np.asarray(offsets, dtype=np.int64).ravel()
@@ -71,8 +76,12 @@ def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, toler
                    for p, closed in zip(line_points, cyclic[strokes])]
     lines = shapely.linestrings(np.concatenate(line_points),
                                 indices=np.repeat(np.arange(len(strokes)), [len(p) for p in line_points]))
-    swept = shapely.buffer(lines, radius, quad_segs=4)
-    parts = list(swept)
+    parts = []
+    if len(areas):
+        filled = shape_geometry(areas)
+        lines = shapely.difference(lines, filled)
+        parts.append(filled)
+    parts.extend(shapely.buffer(lines, radius, quad_segs=4))
     closed = strokes[cyclic[strokes] & (counts[strokes] >= 3)]
     if len(closed):
         outlines = shapely.linearrings(np.concatenate([points[offsets[i]:offsets[i + 1]] for i in closed]),

@@ -150,6 +150,46 @@ def test_a_two_point_closed_spline_inside_the_shape_is_no_hole(addon):
     assert len(obj.shapedeform.cage.data.vertices) < 1000
 
 
+def poly_curve(name, splines, bevel_depth=0.0):
+    """A 2D poly curve object of ``splines`` ([(points (k, 2), closed)]), selected and active."""
+    curve = bpy.data.curves.new(name, "CURVE")
+    curve.dimensions, curve.bevel_depth = "2D", bevel_depth
+    for points, closed in splines:
+        spline = curve.splines.new("POLY")
+        spline.points.add(len(points) - 1)
+        spline.points.foreach_set("co", np.column_stack([points, np.zeros(len(points)), np.ones(len(points))]).ravel())
+        spline.use_cyclic_u = closed
+    obj = bpy.data.objects.new(name, curve)
+    bpy.context.scene.collection.objects.link(obj)
+    checks.select_only(obj)
+    return obj
+
+
+def test_an_open_spline_beside_a_closed_one_is_part_of_the_shape(addon, capfd):
+    """A body (a closed square, a line drawn inside it) with a bevelled tail (an open spline)
+    beside it: a handle on the tail's tip is on the shape and drags the tip. Open splines were
+    left out of the outline whenever a spline was closed: the handle was "71% of the shape's
+    size off it", and dragged up by 1 it left the tip where it was and pulled the body."""
+    corners = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
+    body = np.concatenate([np.linspace(a, b, 4, endpoint=False) for a, b in zip(corners, np.roll(corners, -1, 0))])
+    tail = np.column_stack([np.linspace(1.0, 3.0, 8), np.zeros(8)])
+    mouth = np.array([(-0.5, -0.5), (0.0, -0.6), (0.5, -0.5)])
+    obj = poly_curve("Fig", [(body, True), (tail, False), (mouth, False)], bevel_depth=0.03)
+    rest = checks.evaluated_vertices(obj)
+    capfd.readouterr()
+    *_, tip = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [3.0, 0.0, 0.0])
+    assert "off it" not in capfd.readouterr().out
+    tip.location.y += 1.0
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_vertices(obj)
+    assert obj.shapedeform.status == ""
+    tip_end = rest[:, 0] > 2.9
+    np.testing.assert_allclose(posed[tip_end, :2].mean(axis=0), [3.0, 1.0], atol=0.05)
+    # The body, held at both sides, barely moves; the line drawn inside it goes with it.
+    in_body = np.abs(rest[:, 0]) < 0.9
+    assert np.abs(posed[in_body] - rest[in_body]).max() < 0.1
+
+
 @pytest.mark.parametrize("count", [2, 5])
 def test_a_straight_open_curve_is_swept_in_its_own_plane(addon, count):
     """A straight rope (an open 2D curve with a bevel) lies in many planes: it is rigged in the

@@ -92,6 +92,20 @@ def test_stroke_silhouette_is_the_swept_and_filled_union():
     assert len(rings) == 2  # two islands, no holes: the fill covers the ring's inside
 
 
+def test_stroke_silhouette_sweeps_strokes_only_outside_the_areas():
+    """A curve's closed splines with holes (an O) and open ones: a tail beside it is swept, a
+    line drawn inside the ring (near its edge) adds nothing, and the hole stays a hole."""
+    outer, hole = disk(1.0, 64), disk(0.5, 32)[::-1]
+    tail = np.array([[1.0, 0.0], [3.0, 0.0]])
+    inside = np.array([[0.0, -0.7], [0.0, -0.98]])
+    rings = stroke_silhouette(np.concatenate([tail, inside]), [0, 2, 4], np.full(4, 0.1), areas=[outer, hole])
+    area = shape_geometry(rings).area
+    ring_area = shape_geometry([outer, hole]).area
+    assert area == pytest.approx(ring_area + 2 * 0.2 + 0.5 * np.pi * 0.01, rel=0.01)
+    assert len(rings) == 2  # the outline (the tail joined to it) and the hole
+    assert max(np.linalg.norm(ring, axis=1).max() for ring in rings) == pytest.approx(3.1, abs=1e-6)
+
+
 def test_stroke_silhouette_refuses_nothing():
     with pytest.raises(ValueError, match="zero radius"):
         stroke_silhouette(np.array([[0, 0], [1, 0.0]]), [0, 2], np.zeros(2))
