@@ -2,7 +2,7 @@
 """Handles: ordinary Empty objects, one collection per rig, parented to the rigged object.
 
 A handle's Empty is parented to the shape's object (so moving the object carries its rig;
-except on curves with path animation, which would carry children along the path) and
+except on curves bound with path animation on, which would carry children along the path) and
 drawn as a circle in the shape's plane, as big as the region of the shape it owns. The rig's
 collection also holds its cage (hidden).
 """
@@ -17,7 +17,7 @@ from ..solver.rigging.plane import affine_inverse
 from . import nodes, rig_format
 from . import rig as rigs
 from .errors import NoPointsLeft, RigError
-from .sources import image_plane
+from .sources import curve, image_plane
 
 
 FOLLOW = "Shape Deform"  # the constraint by which a handle follows a curve with path animation
@@ -157,7 +157,7 @@ def _new_handle_empty(obj, world_matrix, radius):
     empty.empty_display_size = radius
     collection(obj).objects.link(empty)
     local = affine_inverse(np.array(obj.matrix_world, dtype=np.float64)) @ world_matrix  # in the owner's space
-    if obj.type == "CURVE" and obj.data.use_path:
+    if rig_format.follows_by_constraint(obj):
         # A curve with path animation carries its children along the path (and a child would
         # depend on the geometry the rig makes): follow its transform alone, by constraint, as
         # its cage does.
@@ -467,6 +467,8 @@ def release_follower(obj):
     lost = image_plane.unbind(obj)
     if quad is not None and quad.users == 0:  # the quad copy made for it (own_quad), not given back
         bpy.data.meshes.remove(quad)
+    if obj.type == "CURVE":  # a copy of a curve whose Path Animation Bind turned off
+        curve.give_back_path_animation(obj)
     for modifier in rig_format.modifiers_of(obj):
         obj.modifiers.remove(modifier)
     if is_own_cage(obj, settings.cage):  # its own (follow), sharing the rig's mesh

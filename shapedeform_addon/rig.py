@@ -165,12 +165,21 @@ def signature(obj, depsgraph=None):
     cage = (s.cage.session_uid, len(s.cage.data.vertices)) if s.cage is not None else None
     return (cage, tuple(_handle_signature(item.object, depsgraph) if rig_format.present(item.object) else None
                         for item in s.handles),
-            values.weight_laplacian, values.weight_mvc, values.weight_edge, values.preserve_area, values.prevent_flips)
+            values.weight_laplacian, values.weight_mvc, values.weight_edge, values.preserve_area, values.prevent_flips,
+            rig_format.path_carries_rig(obj))
 
 
 def lost_cage(obj):
     """What to say of a bound ``obj`` whose cage is gone."""
     return f"'{obj.name}' is bound but lost its cage (deleted by hand): unbind it and bind it again"
+
+
+def _path_carries_handles(obj):
+    """What to say of a curve ``obj`` whose Path Animation was turned on after binding."""
+    return (f"'{obj.name}': Path Animation was turned on after binding, and carries the handles (children of "
+            "the curve) along its path, away from the shape: turn it off (Object Data > Path Animation); to have "
+            "objects ride the path, parent them to the curve, then unbind and bind again (the handles then follow "
+            "it by constraints)")
 
 
 # The solver's parameters its messages name, as the sidebar labels them.
@@ -291,6 +300,9 @@ def pose(obj, depsgraph=None, final=None):
         The rig cannot be built or the solve failed; nothing was written.
     """
     owner = rig_format.owner_of(obj.original)
+    if owner is not None and rig_format.path_carries_rig(owner):
+        invalidate(owner)  # so that the update turning it off again poses the rig
+        raise RigError(_path_carries_handles(owner))
     if owner is not None and owner.shapedeform.cage is not None:
         rig_format.follow_library_cage(owner.shapedeform.cage)  # here, never while drawing
     rig = get(obj, depsgraph)

@@ -17,7 +17,10 @@ On the bound object (the rig's *owner*), ``obj.shapedeform``:
     sharing their data may rig different layers; "" when it deforms them all); for an image
     plane ``cutout_points``, the cut-out's vertices as bind made them (unbind tells from them
     whether the cut-out was edited).
-The cage, a mesh object parented to the owner (or copying its transform) and hidden:
+On a curve's data, ``shapedeform_path_off``: Bind turned its Path Animation off (nothing rode
+    the path, and the rig's children would have); Unbind turns it on again.
+The cage, a mesh object parented to the owner (or, on a curve whose Path Animation stayed on,
+    copying its transform: :func:`follows_by_constraint`) and hidden:
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
     space when it was bound), its point attribute ``sd_rest`` the rest, ``shapedeform.rig``
     the owner. A bake is shape keys on its mesh, its Key marked ``shapedeform_bake``
@@ -58,6 +61,7 @@ HANDLE_INDICES = "indices"  # on a handle's item: the graph points it owns
 HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when it was added
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
 CAGE_STAMP = "shapedeform_cage"  # on a cage's mesh: the owner's cage object it belongs to
+PATH_TURNED_OFF = "shapedeform_path_off"  # on a curve's data: Bind turned its Path Animation off
 UNSETTLED = "shapedeform_unsettled"  # on a cage's mesh: its pose is a Viewport solve that stopped short
 # On a rig's owner and followers: the setting a driver reading its handles' transforms and its
 # pins' keyable amounts writes (:func:`keep_handles_evaluated`); inside the extension's settings,
@@ -234,9 +238,9 @@ def make_cage(obj, plane, graph, collection):
     cage = bpy.data.objects.new(f"{obj.name} Cage", mesh)
     collection.objects.link(cage)
     if obj.type == "CURVE" and obj.data.use_path:
-        # A child of a curve with path animation depends on the curve's geometry, which
-        # depends on the cage: a cycle. The cage copies the curve's transform instead (Apply
-        # Transform then is not followed; the README says so).
+        # A child of a curve with path animation rides the path, so it depends on the curve's
+        # geometry, which depends on the cage: a cycle. The cage copies the curve's transform
+        # instead (Apply Transform then is not followed; the README says so).
         cage.constraints.new("COPY_TRANSFORMS").target = obj
     else:
         cage.parent = obj
@@ -247,6 +251,19 @@ def make_cage(obj, plane, graph, collection):
     cage.hide_viewport = True
     cage.shapedeform.rig = obj
     return cage
+
+
+def follows_by_constraint(obj):
+    """Whether the rig of owner ``obj`` follows it by constraints (a curve bound with Path
+    Animation on) rather than as its children: its cage tells, as it was made at Bind."""
+    cage = obj.shapedeform.cage
+    return cage is not None and cage.parent != obj
+
+
+def path_carries_rig(obj):
+    """Whether the Path Animation of curve ``obj``, turned on after Bind, carries its rig's
+    handles and cage (the curve's children) along the path."""
+    return obj.type == "CURVE" and obj.data.use_path and not follows_by_constraint(obj)
 
 
 def own_mesh(cage):

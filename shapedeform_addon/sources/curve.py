@@ -10,6 +10,14 @@ spline its points. The curve is never written: its Shape Deform modifier maps co
 and handles (a filled, bevelled or text curve reaches the modifier as its tessellated mesh,
 which is mapped the same way).
 
+Path Animation (on by default for Blender's Add > Curve objects) carries a curve's children
+along its path, so a child would depend on the curve's geometry, which the rig makes. Only
+children parented to the object ride the path (and a Guide force field on it needs it; Follow
+Path, Clamp To, the Curve modifier and text on a curve have Blender compute the path anyway), so
+Bind turns it off when nothing uses it, marking the data (``rig_format.PATH_TURNED_OFF``), and
+Unbind turns it on again; the handles and cage are then the curve's children. Where something
+uses it, they follow the curve by constraints instead.
+
 ``sd_rest`` (an ID property of the curve data) is where an older version kept the rest points
 while it wrote poses into the curve; :func:`restore_legacy` gives them back.
 """
@@ -21,8 +29,10 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.outline import refine_level, sample_bezier, with_area
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
+from .. import compat
 from ..errors import RigError
 from ..nodes import REFINE_INPUT
+from ..rig_format import PATH_TURNED_OFF, follows_by_constraint
 from .mesh import edges, positions
 from .prepared import Prepared
 
@@ -72,7 +82,68 @@ def _rings_and_strokes(curve, flat):
 
 def prepare(obj, settings):
     """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
-    return prepare_splines(obj, obj.data, settings)
+    prepared = prepare_splines(obj, obj.data, settings)
+    if obj.data.use_path:
+        users = path_users(obj)
+        if users:
+            prepared.advice = (f"Path Animation stays on ({'; '.join(users)}), so the handles follow the curve by "
+                               "constraints: move the curve without its handles (moved with it, they move twice)")
+        else:
+            prepared.commit = _turn_path_off
+            prepared.advice = "turned Path Animation off, as nothing rides the curve's path (Unbind turns it on again)"
+    return prepared
+
+
+def path_users(obj):
+    """What needs the Path Animation of curve ``obj``'s data, as phrases (empty when nothing).
+
+    Objects parented to an object with this data ride its path, a Guide force field on one
+    follows it, an animated Evaluation Time is meant to move something along it, and data of a
+    library cannot be changed here. The rigs' own handles and cages are not counted.
+    """
+    data = obj.data
+    if data.library is not None:
+        return [f"the curve's data comes from the library '{data.library.name}'"]
+    sharing = [o for o in bpy.data.objects if o.data == data]
+    riders = [child.name for o in sharing for child in o.children
+              if child.parent_type == "OBJECT" and child.shapedeform.rig is None]
+    guides = [o.name for o in sharing if o.field is not None and o.field.type == "GUIDE"]
+    found = [f"{', '.join(map(repr, riders))} {'rides' if len(riders) == 1 else 'ride'} the path"] if riders else []
+    found += [f"a Guide force field on {', '.join(map(repr, guides))}"] if guides else []
+    found += ["the curve's Evaluation Time is animated"] if _animated(data, "eval_time") else []
+    return found
+
+
+def _animated(block, data_path):
+    """Whether ``block``'s (an ID's) property ``data_path`` is driven, or keyed in the action it
+    plays or in an action of its NLA strips."""
+    animation = block.animation_data
+    if animation is None:
+        return False
+    if animation.drivers.find(data_path) is not None:
+        return True
+    played = [(animation.action, animation.action_slot)]
+    played += [(strip.action, strip.action_slot) for track in animation.nla_tracks for strip in track.strips]
+    bags = [compat.channelbag(action, slot) for action, slot in played if action is not None and slot is not None]
+    return any(bag is not None and bag.fcurves.find(data_path) is not None for bag in bags)
+
+
+def _turn_path_off(obj):
+    obj.data.use_path = False
+    obj.data[PATH_TURNED_OFF] = True
+
+
+def give_back_path_animation(obj):
+    """Turn the Path Animation of ``obj``'s curve data on again where Bind turned it off, unless
+    another rig bound as the children of an object with this data still needs it off."""
+    data = obj.data
+    if not data.get(PATH_TURNED_OFF):
+        return
+    if any(o != obj and o.data == data and o.shapedeform.cage is not None and not follows_by_constraint(o)
+           for o in bpy.data.objects):
+        return
+    data.use_path = True
+    del data[PATH_TURNED_OFF]
 
 
 def prepare_splines(obj, curve, settings):
@@ -114,6 +185,7 @@ def _fill_refinement(obj, plane, graph):
 
 def unbind(obj):
     """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`)."""
+    give_back_path_animation(obj)
     return []
 
 

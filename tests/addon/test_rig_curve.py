@@ -212,17 +212,118 @@ def test_a_straight_open_curve_is_swept_in_its_own_plane(addon, count):
     assert np.abs(rope[rope[:, 0] < 0.1, 1]).max() < 0.1
 
 
-def test_a_curve_with_path_animation_moves_with_its_handles(addon, quiet):
-    """Blender's curve primitives have Path Animation on, so the handles cannot be its children
-    (a child would follow the path and depend on the rigged geometry): they follow it by a
-    Child Of constraint, and moving the object moves the posed shape rigidly with its handles
-    (unparented, they stayed behind and pulled the shape back on the next update)."""
+def bezier_circle_with_handles():
+    """Blender's Bezier circle (Path Animation on, as Add > Curve makes it), bound, with handles
+    at its left and right; returns it and the handles."""
     bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)
     obj = bpy.context.active_object
-    assert obj.data.use_path  # Blender's default for Add > Curve
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
-    handle = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    assert obj.data.use_path
+    return obj, checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
+
+
+def select_with_handles(obj):
+    """Select ``obj`` and its rig's handles, as a box around the character does."""
+    checks.select_only(obj)
+    for item in obj.shapedeform.handles:
+        item.object.select_set(True)
+
+
+def test_a_curve_with_path_animation_moves_with_its_handles(addon, tmp_path, capfd, quiet):
+    """Path Animation carries a curve's children along its path (a child would depend on the
+    geometry the rig makes), so the handles followed the curve by a Child Of constraint, and
+    moving the curve together with its handles (box-select, G) moved them twice: the shape slid
+    off by the move. Nothing rides this curve's path, so Bind turns it off and says so, the
+    handles are the curve's children and move once; Unbind turns it on again, also after saving
+    and reopening, and undoing Unbind turns it off again."""
+    capfd.readouterr()
+    obj, (_, handle) = bezier_circle_with_handles()
+    assert "turned Path Animation off" in capfd.readouterr().out
+    assert not obj.data.use_path and handle.parent == obj
+    handle.location.y += 0.4
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_curve_points(obj).copy()
+    select_with_handles(obj)
+    assert bpy.ops.transform.translate(value=(2.0, 0.0, 0.0)) == {"FINISHED"}
+    obj.rotation_euler.z += 0.5  # the curve alone: its handles follow
+    bpy.context.view_layer.update()
+    bpy.context.scene.frame_set(2)
+    assert obj.shapedeform.status == ""
+    np.testing.assert_allclose(checks.evaluated_curve_points(obj), posed, atol=1e-5)
+    assert handle.matrix_world.translation.x > 2.0
+
+    path, name = str(tmp_path / "circle.blend"), obj.name
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects[name]
+    checks.select_only(obj)
+    bpy.ops.ed.undo_push(message="bound")
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert obj.data.use_path and "shapedeform_path_off" not in obj.data
+    bpy.ops.ed.undo_push(message="unbound")
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    obj = bpy.data.objects[name]
+    assert obj.shapedeform.is_bound and not obj.data.use_path
+
+
+def test_a_duplicate_of_a_curve_and_its_handles_stays_in_place(addon, quiet):
+    """Shift+D on a curve with its handles, moved by 4: the copy gets a rig of its own, and its
+    shape stays on it (its handles, following by Child Of, moved by the drag and again with the
+    copy: the shape landed 4 further)."""
+    obj, _ = bezier_circle_with_handles()
+    rest = checks.evaluated_curve_points(obj).copy()
+    select_with_handles(obj)
+    assert bpy.ops.object.duplicate_move(TRANSFORM_OT_translate={"value": (4.0, 0.0, 0.0)}) == {"FINISHED"}
+    copy = next(o for o in bpy.context.selected_objects if o.type == "CURVE")
+    bpy.context.view_layer.update()
+    bpy.context.scene.frame_set(2)
+    assert copy.shapedeform.status == ""
+    np.testing.assert_allclose(checks.evaluated_curve_points(copy), rest, atol=1e-5)
+    checks.select_only(copy)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert copy.data.use_path and not obj.data.use_path
+
+
+def test_path_animation_turned_on_after_binding_is_reported(addon, quiet):
+    """Path Animation turned on again after Bind carries the handles, the curve's children,
+    along the path, away from the shape (a handle drawn at (1, -0.4) posed the shape at
+    (1, 0.6)): the rig keeps its pose and says what to do; turned off, it poses again."""
+    obj, (_, handle) = bezier_circle_with_handles()
+    handle.location.y += 0.4
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_curve_points(obj).copy()
+    obj.data.use_path = True
+    bpy.context.view_layer.update()
+    handle.location.y += 0.2
+    bpy.context.view_layer.update()
+    assert "Path Animation was turned on after binding" in obj.shapedeform.status
+    np.testing.assert_allclose(checks.evaluated_curve_points(obj), posed, atol=1e-6)
+    obj.data.use_path = False
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    assert np.linalg.norm(checks.evaluated_curve_points(obj) - [1.0, 0.6, 0.0], axis=1).min() < 0.02
+
+
+@pytest.mark.parametrize("use", ["rider", "keyed"])
+def test_a_curve_whose_path_is_used_keeps_path_animation(addon, use, capfd, quiet):
+    """An object riding the curve's path (its child), or a keyed Evaluation Time, needs Path
+    Animation: Bind keeps it on and says why and what not to do, the handles follow the curve by
+    a Child Of constraint (moving the curve moves the posed shape with them), and the rider
+    stays where it was."""
+    bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)
+    obj = bpy.context.active_object
+    rider = bpy.data.objects.new("Rider", None)
+    bpy.context.scene.collection.objects.link(rider)
+    if use == "rider":
+        rider.parent = obj
+    else:
+        obj.data.keyframe_insert("eval_time", frame=1)
+    bpy.context.view_layer.update()
+    riding = rider.matrix_world.copy()
+    capfd.readouterr()
+    _, handle = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
+    why = "'Rider' rides the path" if use == "rider" else "the curve's Evaluation Time is animated"
+    assert f"Path Animation stays on ({why})" in capfd.readouterr().out
+    assert obj.data.use_path
     assert handle.parent is None and handle.constraints[0].type == "CHILD_OF"
     handle.location.y += 0.4
     bpy.context.view_layer.update()
@@ -234,6 +335,14 @@ def test_a_curve_with_path_animation_moves_with_its_handles(addon, quiet):
     assert obj.shapedeform.status == ""
     np.testing.assert_allclose(checks.evaluated_curve_points(obj), posed, atol=1e-5)
     assert handle.matrix_world.translation.x > 3.0
+    bpy.context.scene.frame_set(1)
+    obj.location.x -= 3.0
+    obj.rotation_euler.z -= 0.5
+    bpy.context.view_layer.update()
+    assert np.allclose(np.array(rider.matrix_world), np.array(riding), atol=1e-6)
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert obj.data.use_path
 
 
 @pytest.mark.parametrize("handle_type, dimensions", [("AUTO", "2D"), ("AUTO", "3D"), ("VECTOR", "2D")])
