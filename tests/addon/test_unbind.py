@@ -55,7 +55,7 @@ def test_unbind_removes_the_bake_and_a_new_rig_is_live(addon, make):
     rig(obj, first, second, (0.4, 0.3, 0.0))
     assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 6) == [obj]
     scene.frame_set(6)
-    assert np.abs(evaluated() - rest).max() > 0.1  # the bake plays
+    assert moved(evaluated(), rest) > 0.1  # the bake plays
 
     unbind(obj)
     assert "baked" not in obj.shapedeform and "baked_gp_frames" not in obj.shapedeform
@@ -80,7 +80,13 @@ def test_unbind_removes_the_bake_and_a_new_rig_is_live(addon, make):
     handle.location.x += 0.3
     bpy.context.view_layer.update()
     assert obj.shapedeform.status == ""
-    assert np.abs(evaluated() - rest).max() > 0.1
+    assert moved(evaluated(), rest) > 0.1
+
+
+def moved(points, rest):
+    """How far the box round ``points`` (n, 3) is from the box round ``rest`` (m, 3): a filled
+    curve's rig refines its fill, so the two need not have the same points."""
+    return max(np.abs(points.min(axis=0) - rest.min(axis=0)).max(), np.abs(points.max(axis=0) - rest.max(axis=0)).max())
 
 
 def _duplicate(original, linked):
