@@ -2,8 +2,9 @@
 """Binding an object to a new rig, and unbinding it.
 
 Binding computes everything first (so a refusal changes nothing), then adds the cage, the
-handle collection and the Shape Deform modifier; the object's own data is left as it is (an
-image plane's quad is swapped for a cut-out of its picture, kept and given back on unbind).
+handle collection and the Shape Deform modifier; the object's own shape is left as it is (an
+image plane's quad is swapped for a cut-out of its picture, kept and given back on unbind; a
+mesh in several islands gets its vertices' islands, removed on unbind).
 """
 
 import bpy
@@ -68,7 +69,7 @@ def bind(obj):
     prepared.advice = "; ".join(notes)
     prepared.commit(obj)
     rig_format.store_graph(settings, prepared.plane, prepared.graph)
-    settings.cage = rig_format.make_cage(obj, prepared.plane, prepared.graph, handles.collection(obj))
+    settings.cage = rig_format.make_cage(obj, prepared.plane, prepared.graph, handles.collection(obj), prepared.islands)
     # A deformer modifier copied from another rig (Copy Modifiers) would keep posing the object
     # with that rig's cage before this one's.
     for modifier in copied:

@@ -17,7 +17,7 @@ from ..solver.rigging.plane import affine_inverse
 from . import nodes, rig_format
 from . import rig as rigs
 from .errors import NoPointsLeft, RigError
-from .sources import curve, image_plane
+from .sources import curve, image_plane, mesh as mesh_source
 
 
 FOLLOW = "Shape Deform"  # the constraint by which a handle follows a curve with path animation
@@ -453,7 +453,8 @@ def keep_in_collection(obj):
 
 def release_follower(obj):
     """Make a follower a plain object: its modifiers, its own cage and its copy of the rig's
-    settings go; an image plane gets its quad back, as its owner does on unbind.
+    settings go; an image plane gets its quad back, and a mesh of its own (a copy) loses its
+    vertices' islands, as its owner's do on unbind.
 
     Returns
     -------
@@ -469,6 +470,8 @@ def release_follower(obj):
         bpy.data.meshes.remove(quad)
     if obj.type == "CURVE":  # a copy of a curve whose Path Animation Bind turned off
         curve.give_back_path_animation(obj)
+    if obj.type == "MESH":
+        mesh_source.forget_islands(obj)
     for modifier in rig_format.modifiers_of(obj):
         obj.modifiers.remove(modifier)
     if is_own_cage(obj, settings.cage):  # its own (follow), sharing the rig's mesh

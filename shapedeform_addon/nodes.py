@@ -27,9 +27,18 @@ cage, nearly all of them, are found instead by Sample UV Surface, whose reverse-
 cheaper lookup: the cage gets a UV map, its rest points in the plane scaled to the unit square,
 and each point samples the cage's displacement (posed minus rest) at its own UV, which is the
 same map (barycentric in the plane, heights kept). Only the points it misses (off the outline)
-and Bezier handles take the nearest-triangle search. A point that is the cage's point of its own
-index, at its rest place (a mesh that is its own graph), takes that point's displacement instead:
-where islands of such a mesh overlap in the plane, a place alone cannot tell them apart.
+and Bezier handles take the nearest-triangle search.
+
+Where islands of a mesh that is its own graph overlap in the plane (a cut-out puppet's arm over
+its body), a place alone cannot tell them apart. Bind gives such a mesh's vertices their island
+(``ISLAND``, a hidden integer point attribute, also on the cage's points), which Blender keeps
+through Edit Mode, Separate, shape keys and ``Refine``: the cage's UVs put each island in a tile
+of its own, two units from the next, and a point samples its island's tile; a point its island's
+part misses takes the nearest triangle of that island (Sample Nearest Surface by group). A point
+of no island (a rig bound by an older version, a vertex added since, a mesh joined in) is looked
+up by its place (in an island rig, by the nearest triangle of any island); one that is the
+cage's point of its own index, at its rest place (such a rig unedited), takes that point's
+displacement. The group's output has no islands: they are the rig's, not the shape's.
 
 Grease pencil's ``Stroke Order`` draws the strokes lying on a folded-over part after the others
 in their layer: a ray from behind through the posed cage finds the lowest layer under each
@@ -49,10 +58,14 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 15
+VERSION = 16
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
+# An integer point attribute: on the cage, each point's island + 1; on a mesh that is its own
+# graph in several islands, each vertex's (hidden: the name starts with a dot). 0 or missing:
+# not known (a rig bound by an older version, a vertex added since binding).
+ISLAND = ".sd_island"
 # The name of a boolean attribute naming what the rig deforms (grease-pencil layers chosen at
 # bind time, on the LAYER domain), given to each modifier (``RIGGED_INPUT``): objects sharing
 # their data each have their own; everything is deformed when it is missing or the name empty.
@@ -191,6 +204,8 @@ def _build(group):
     curves, left, right, point = _map_bezier_handles(b, cage, geometry, selection)
     moved = _set_bezier_handles(b, cage, _map_points(b, cage, curves, selection), selection, left, right, point)
     ordered = _stroke_order(b, cage, moved, given.outputs[ORDER_INPUT], selection)
+    # The islands are the rig's: a modifier applied, or a mesh exported with modifiers, has none.
+    ordered = b.node("GeometryNodeRemoveAttribute", {"Geometry": ordered, "Name": ISLAND}).outputs[0]
     # No cage (deleted by hand, or no faces): the geometry passes unchanged.
     faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.geometry}, component="MESH")
     has_cage = b.node("FunctionNodeCompare", {"A": faces.outputs["Face Count"], "B": 0},
@@ -250,6 +265,7 @@ class _Cage:
         self.posed = b.node("GeometryNodeInputNamedAttribute", {"Name": POSED}, data_type="FLOAT_VECTOR").outputs[0]
         self._face_maps()
         self._plane()
+        self._islands()
 
     def _face_maps(self):
         """Each triangle's linear map (rest edges to posed edges, the rest normal kept), with
@@ -293,21 +309,57 @@ class _Cage:
         self.corner = box.outputs["Min"]
         self.span = b.math("SUBTRACT", box.outputs["Max"], self.corner)
 
+    def _islands(self):
+        """``island``: a point's island of the cage + 1 (:data:`ISLAND`), on the cage and on the
+        deformed geometry alike; 0 where it is not one of the cage's (unknown, or the cage has
+        none). ``tile``: where the island's UVs lie (:meth:`uv`)."""
+        b = self.b
+        given = b.node("GeometryNodeInputNamedAttribute", {"Name": ISLAND}, data_type="INT").outputs[0]
+        count = b.node("GeometryNodeAttributeStatistic", {"Geometry": self.rest, "Attribute": given},
+                       data_type="FLOAT", domain="POINT").outputs["Max"]
+        low = b.node("FunctionNodeCompare", {"A": given, "B": 1.0}, data_type="FLOAT",
+                     operation="GREATER_EQUAL").outputs[0]
+        high = b.node("FunctionNodeCompare", {"A": given, "B": count}, data_type="FLOAT",
+                      operation="LESS_EQUAL").outputs[0]
+        listed = b.node("FunctionNodeBooleanMath", [low, high], operation="AND").outputs[0]
+        self.island = b.node("ShaderNodeMath", [given, listed], operation="MULTIPLY").outputs[0]
+        # Islands in a square of tiles two units apart (apart from the unit square of island
+        # 0), near the origin: UVs keep float32's precision with hundreds of islands.
+        columns = b.node("ShaderNodeMath", [b.node("ShaderNodeMath", [count, 1.0], operation="ADD").outputs[0]],
+                         operation="SQRT").outputs[0]
+        columns = b.node("ShaderNodeMath", [columns], operation="CEIL").outputs[0]
+        column = b.node("ShaderNodeMath", [self.island, columns], operation="FLOORED_MODULO").outputs[0]
+        rows = b.node("ShaderNodeMath", [self.island, columns], operation="DIVIDE").outputs[0]
+        row = b.node("ShaderNodeMath", [rows], operation="FLOOR").outputs[0]
+        self.tile = b.node("ShaderNodeVectorMath", {"Vector": b.node("ShaderNodeCombineXYZ", [column, row]).outputs[0],
+                                                    "Scale": 2.0}, operation="SCALE").outputs[0]
+
     def in_plane(self, point):
         """``point`` turned so that the rig's plane is XY."""
         return self.b.node("FunctionNodeRotateVector", [point, self._onto_plane]).outputs[0]
 
     def uv(self, point):
-        """``point``'s place in the rest cage's bounding square, in the plane: the cage's UVs."""
+        """``point``'s place in the rest cage's bounding square, in the plane, moved to its
+        island's tile: the cage's UVs (a point of no known island: the unit square)."""
         b = self.b
-        return b.math("DIVIDE", b.math("SUBTRACT", self.in_plane(point), self.corner), self.span)
+        return b.math("ADD", b.math("DIVIDE", b.math("SUBTRACT", self.in_plane(point), self.corner), self.span),
+                      self.tile)
 
-    def mapped(self, point, about=None):
+    def mapped(self, point, about=None, in_island=False):
         """``point`` (a field on the deformed geometry) through the map of the triangle nearest
-        ``about`` (by default the point itself)."""
+        ``about`` (by default the point itself); with ``in_island``, the nearest of the point's
+        island (:attr:`island`, which must be known)."""
         b = self.b
-        face = b.node("GeometryNodeSampleNearest", {"Geometry": self.rest, "Sample Position": point if about is None else about},
-                      domain="FACE").outputs[0]
+        about = point if about is None else about
+        if in_island:
+            face_index = b.node("GeometryNodeFieldOnDomain", {"Value": b.node("GeometryNodeInputIndex").outputs[0]},
+                                domain="FACE", data_type="INT").outputs[0]
+            face = b.node("GeometryNodeSampleNearestSurface",
+                          {"Mesh": self.rest, "Value": face_index, "Group ID": self.island, "Sample Position": about,
+                           "Sample Group ID": self.island}, data_type="INT").outputs["Value"]
+        else:
+            face = b.node("GeometryNodeSampleNearest", {"Geometry": self.rest, "Sample Position": about},
+                          domain="FACE").outputs[0]
 
         def at_face(field, data_type):
             return b.node("GeometryNodeSampleIndex", {"Geometry": self.rest, "Value": field, "Index": face},
@@ -368,20 +420,24 @@ def _set_bezier_handles(b, cage, curve, selection, left, right, point):
 
 
 def _map_points(b, cage, geometry, selection):
-    """Every point moved: a point that is the cage's point of its own index (a mesh that is its
-    own graph) by that point's displacement; inside the cage by its displacement sampled at the
-    point's UV (see the module docstring); elsewhere through its nearest triangle's map."""
+    """Every point moved: inside the cage (its island's part, where it has one) by its
+    displacement sampled at the point's UV (see the module docstring), or where it is the cage's
+    point of its own index with no island known (a mesh that is its own graph, bound by an
+    older version) by that point's; elsewhere through its nearest triangle's map (its island's)."""
     group, position = b.group, cage.position
     shift = b.math("SUBTRACT", cage.posed, position)
     displacement = b.node("GeometryNodeSampleUVSurface",
                           {"Mesh": cage.rest, "Value": shift, "UV Map": cage.uv(position), "Sample UV": cage.uv(position)},
                           data_type="FLOAT_VECTOR")
+    known = b.node("FunctionNodeCompare", {"A": cage.island, "B": 0.5}, data_type="FLOAT",
+                   operation="GREATER_THAN").outputs[0]
     own = _OwnCagePoint(b, cage)
+    own_found = b.node("FunctionNodeBooleanMath", [own.found, known], operation="NIMPLY").outputs[0]
     own_shift = b.node("GeometryNodeSampleIndex", {"Geometry": cage.rest, "Value": shift, "Index": own.index},
                        data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
-    shifted = b.node("GeometryNodeSwitch", {"Switch": own.found, "False": displacement.outputs["Value"],
+    shifted = b.node("GeometryNodeSwitch", {"Switch": own_found, "False": displacement.outputs["Value"],
                                             "True": own_shift}, input_type="VECTOR").outputs[0]
-    found = b.node("FunctionNodeBooleanMath", [own.found, displacement.outputs["Is Valid"]], operation="OR").outputs[0]
+    found = b.node("FunctionNodeBooleanMath", [own_found, displacement.outputs["Is Valid"]], operation="OR").outputs[0]
     # Captured once for every point, so the search below runs only where both lookups missed.
     captured = b.node("GeometryNodeCaptureAttribute", {"Geometry": geometry}, domain="POINT")
     captured.capture_items.new("BOOLEAN", "Inside")
@@ -392,10 +448,14 @@ def _map_points(b, cage, geometry, selection):
     inside, moved_inside = captured.outputs["Inside"], captured.outputs["Moved"]
     both = b.node("FunctionNodeBooleanMath", [selection, inside], operation="AND").outputs[0]
     outside = b.node("FunctionNodeBooleanMath", [selection, inside], operation="NIMPLY").outputs[0]
-    looked_up = b.node("GeometryNodeSetPosition",
-                       {"Geometry": captured.outputs[0], "Selection": both, "Position": moved_inside})
-    return b.node("GeometryNodeSetPosition",
-                  {"Geometry": looked_up.outputs[0], "Selection": outside, "Position": cage.mapped(position)}).outputs[0]
+    moved = b.node("GeometryNodeSetPosition",
+                   {"Geometry": captured.outputs[0], "Selection": both, "Position": moved_inside}).outputs[0]
+    # Each search only where its points are: a Set Position's selection limits what it evaluates.
+    for in_island, operation in ((False, "NIMPLY"), (True, "AND")):
+        chosen = b.node("FunctionNodeBooleanMath", [outside, known], operation=operation).outputs[0]
+        moved = b.node("GeometryNodeSetPosition", {"Geometry": moved, "Selection": chosen,
+                                                   "Position": cage.mapped(position, in_island=in_island)}).outputs[0]
+    return moved
 
 
 class _OwnCagePoint:
@@ -403,7 +463,8 @@ class _OwnCagePoint:
     its rest place in the plane (to 1e-5 of the cage's extent): so it is where a mesh is its own
     graph, unless edited since binding. Where islands of such a mesh overlap in the plane (a
     puppet's arm over its body), the UV lookup cannot tell which island a point belongs to (it
-    moved body points with the arm); the index can. Fields ``index`` and ``found``."""
+    moved body points with the arm); the index can, where the points have no island of their
+    own (a rig bound by an older version). Fields ``index`` and ``found``."""
 
     def __init__(self, b, cage):
         self.index = b.node("GeometryNodeInputIndex").outputs[0]

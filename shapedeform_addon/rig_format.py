@@ -1,8 +1,10 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The saved rig format: everything a rig keeps in the .blend, read and written here only.
 
-A rig never changes the data of the object it deforms (an image plane's quad is swapped for a
-cut-out mesh the rig makes, and given back on unbind). What it keeps:
+A rig never changes the shape of the object it deforms (an image plane's quad is swapped for a
+cut-out mesh the rig makes, and given back on unbind; a mesh that is its own graph in several
+islands gets its vertices' islands, the hidden point attribute ``nodes.ISLAND``, removed on
+unbind). What it keeps:
 
 On the bound object (the rig's *owner*), ``obj.shapedeform``:
     ``is_bound``, ``kind``, the settings (:mod:`.properties`), ``cage``, ``handles`` (each item:
@@ -22,7 +24,8 @@ On a curve's data, ``shapedeform_path_off``: Bind turned its Path Animation off 
 The cage, a mesh object parented to the owner (or, on a curve whose Path Animation stayed on,
     copying its transform: :func:`follows_by_constraint`) and hidden:
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
-    space when it was bound), its point attribute ``sd_rest`` the rest, ``shapedeform.rig``
+    space when it was bound), its point attribute ``sd_rest`` the rest (and ``nodes.ISLAND``
+    each point's island + 1, where the owner's vertices have theirs), ``shapedeform.rig``
     the owner. A bake is shape keys on its mesh, its Key marked ``shapedeform_bake``
     (:mod:`.bake`); the mesh's ``shapedeform_cage`` names the owner's cage object it belongs
     to (:func:`.handles.own_cage_mesh`). In a library override of a rigged character the cage's mesh is a local
@@ -228,12 +231,15 @@ def watches_handles(obj):
 
 # -- the cage and the modifier ----------------------------------------------------------------
 
-def make_cage(obj, plane, graph, collection):
-    """The cage object of ``obj``'s rig, at rest, parented to it and linked into ``collection``."""
+def make_cage(obj, plane, graph, collection, islands=None):
+    """The cage object of ``obj``'s rig, at rest, parented to it and linked into ``collection``;
+    ``islands`` (each graph point's island + 1) where ``obj``'s points carry theirs."""
     rest = plane.to_3d(graph.points).astype(np.float32)
     mesh = bpy.data.meshes.new(f"{obj.name} Cage")
     mesh.from_pydata(rest.tolist(), [], graph.triangles.tolist())
     mesh.attributes.new(nodes.REST, "FLOAT_VECTOR", "POINT").data.foreach_set("vector", rest.ravel())
+    if islands is not None:
+        mesh.attributes.new(nodes.ISLAND, "INT", "POINT").data.foreach_set("value", islands)
     mesh.update()
     cage = bpy.data.objects.new(f"{obj.name} Cage", mesh)
     collection.objects.link(cage)

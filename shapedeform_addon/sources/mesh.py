@@ -1,11 +1,18 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Planar meshes: the graph is the mesh itself (small, well-shaped meshes) or built inside its
-outline; the mesh is never written (its Shape Deform modifier shows the pose).
+outline; the mesh's points are never written (its Shape Deform modifier shows the pose).
+
+A mesh that is its own graph with several islands gets a hidden point attribute,
+:data:`ISLAND`: each vertex's island of the graph + 1 (see :mod:`..nodes`). Blender carries it
+through Edit Mode, Separate, shape keys and the modifier's subdivision, so overlapping islands
+(a cut-out puppet's arm over its body) stay apart whatever the vertices' indices and places
+become; unbind removes it.
 
 ``sd_rest`` is where an older version kept the rest positions while it wrote poses into the
 mesh; :func:`restore_legacy` gives them back when such a rig is unbound.
 """
 
+import bpy
 import numpy as np
 import shapely
 from scipy.sparse import coo_matrix
@@ -20,6 +27,7 @@ from ...solver.wording import by_count
 from ...solver.rigging.outline import boundary_loops, smallest_angles, with_area
 from ...solver.rigging.plane import fit_plane
 from ..errors import RigError
+from ..nodes import ISLAND
 from .prepared import Prepared
 
 REST_ATTRIBUTE = "sd_rest"
@@ -67,8 +75,8 @@ def _welded(rest, flat, tris, mesh_edges):
     size): a mesh whose faces share no vertices (an OBJ import, Edge Split) is one piece, not an
     island per face. Islands that only overlap (a puppet's arm over its body) stay apart, even
     where a vertex of one lies on a vertex of the other. (Where joined faces meet at a corner
-    only, :func:`prepare` rigs the outline.) Returns (flat points (p, 2), triangles, edges):
-    the mesh as it is when nothing joins."""
+    only, :func:`prepare` rigs the outline.) Returns (flat points (p, 2), triangles, edges,
+    each vertex's point (n,)): the mesh as it is when nothing joins."""
     size = float(np.linalg.norm(np.ptp(rest, axis=0)))
     pairs = cKDTree(rest).query_pairs(1e-6 * size, output_type="ndarray")
     # Corners of one triangle are never joined (a strip a million times longer than wide is
@@ -76,8 +84,9 @@ def _welded(rest, flat, tris, mesh_edges):
     n = len(rest)
     corner_pairs = np.sort(tris[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     pairs = pairs[~np.isin(pairs[:, 0] * n + pairs[:, 1], corner_pairs[:, 0] * n + corner_pairs[:, 1])]
+    unjoined = (flat, tris, mesh_edges, np.arange(n))
     if len(pairs) == 0:
-        return flat, tris, mesh_edges
+        return unjoined
     _, place = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
                                     directed=False)
     sides, uses = np.unique(corner_pairs, axis=0, return_counts=True)
@@ -87,7 +96,7 @@ def _welded(rest, flat, tris, mesh_edges):
     joined = np.zeros(n, dtype=bool)
     joined[open_sides[lying[side_place.ravel()] > 1].ravel()] = True  # on an edge that lies on another
     if not joined.any():
-        return flat, tris, mesh_edges
+        return unjoined
     _, label = np.unique(np.where(joined, place, place.max() + 1 + np.arange(n)), return_inverse=True)
     label = label.ravel()
     first = np.zeros(label.max() + 1, dtype=np.int64)
@@ -96,7 +105,7 @@ def _welded(rest, flat, tris, mesh_edges):
     merged = merged[(merged[:, 0] != merged[:, 1]) & (merged[:, 1] != merged[:, 2]) & (merged[:, 0] != merged[:, 2])]
     edges_merged = np.sort(label[mesh_edges], axis=1)
     edges_merged = np.unique(edges_merged[edges_merged[:, 0] != edges_merged[:, 1]], axis=0)
-    return flat[first], merged, edges_merged
+    return flat[first], merged, edges_merged, label
 
 
 def prepare(obj, settings):
@@ -109,7 +118,7 @@ def prepare(obj, settings):
         plane = fit_plane(rest)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
-    flat, tris, mesh_edges = _welded(rest, plane.to_2d(rest), triangles(mesh), edges(mesh))
+    flat, tris, mesh_edges, vertex_point = _welded(rest, plane.to_2d(rest), triangles(mesh), edges(mesh))
     if len(tris) == 0:
         raise RigError(f"'{obj.name}' cannot be rigged: it has no faces")
     try:
@@ -148,7 +157,25 @@ def prepare(obj, settings):
     if not well_shaped:
         advice = ("its long thin faces can fold where it bends hard: raise Refine on its Shape Deform "
                   "modifier to subdivide them")
-    return Prepared(plane, graph, advice=advice)
+    islands = _islands(graph) if mode == "OWN" else None
+    if islands is None:
+        return Prepared(plane, graph, advice=advice)
+    return Prepared(plane, graph, lambda o: _mark_islands(o, islands[vertex_point]), advice=advice, islands=islands)
+
+
+def _islands(graph):
+    """Each graph point's island + 1, (n,) int32; None when the graph is one piece."""
+    islands = graph.components().astype(np.int32) + 1
+    return islands if islands.max() > 1 else None
+
+
+def _mark_islands(obj, vertex_islands):
+    """Write each vertex's island + 1 into the mesh as :data:`ISLAND` (another rig of this data
+    may have written it: it is made anew)."""
+    attributes = obj.data.attributes
+    if attributes.get(ISLAND) is not None:
+        attributes.remove(attributes[ISLAND])
+    attributes.new(ISLAND, "INT", "POINT").data.foreach_set("value", vertex_islands)
 
 
 def _faces_overlap(flat, tris):
@@ -160,7 +187,20 @@ def _faces_overlap(flat, tris):
 
 def unbind(obj):
     """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`)."""
+    forget_islands(obj)
     return []
+
+
+def forget_islands(obj):
+    """Remove the vertices' islands (:data:`ISLAND`) from ``obj``'s mesh unless another bound
+    object shares the mesh (a linked duplicate following the rig, another rig of the data): the
+    last of them to be unbound removes it."""
+    attribute = obj.data.attributes.get(ISLAND)
+    if attribute is None:
+        return
+    if any(other.data == obj.data and other != obj and other.shapedeform.is_bound for other in bpy.data.objects):
+        return
+    obj.data.attributes.remove(attribute)
 
 
 def restore_legacy(obj):

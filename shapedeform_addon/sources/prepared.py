@@ -22,6 +22,9 @@ class Prepared:
     modifier_inputs : dict
         Values the deformer modifier's inputs start with, by input name, where this object's
         differ from the node group's defaults (grease pencil: Stroke Order).
+    islands : (n,) int32 ndarray or None
+        Each graph point's island + 1, for the cage, where ``commit`` gives the object's points
+        theirs (a mesh that is its own graph, in several islands); None elsewhere.
     """
 
     plane: object
@@ -29,3 +32,4 @@ class Prepared:
     commit: Callable = field(default=lambda obj: None)
     advice: str = ""
     modifier_inputs: dict = field(default_factory=dict)
+    islands: object = None

@@ -6,6 +6,8 @@ import bpy
 import numpy as np
 import pytest
 from mathutils import Matrix, Vector
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 import rig_checks as checks
 
@@ -193,22 +195,6 @@ def test_add_handles_at_selected_vertices(addon):
     np.testing.assert_allclose([h.matrix_world.translation for h in handles], expected, atol=1e-6)
 
 
-@pytest.mark.parametrize("loose, message", [(1, "1 vertex is on no face"), (2, "2 vertices are on no face")])
-def test_graph_mesh_refuses_vertices_on_no_face_and_says_how_many(addon, loose, message):
-    """Graph: Mesh on a grid with loose vertices beside it names them in agreement with their
-    count ("1 vertices are on no face" was said of one) and changes nothing."""
-    obj = grid()
-    obj.data.vertices.add(loose)
-    for i, vertex in enumerate(obj.data.vertices[-loose:]):
-        vertex.co = (1.5, 0.1 * i, 0.0)
-    obj.data.update()
-    obj.shapedeform.graph_mode = "OWN"
-    before = checks.snapshot()
-    with pytest.raises(RuntimeError, match=f"{message}; use the Outline graph"):
-        bpy.ops.shapedeform.bind()
-    assert checks.snapshot() == before
-
-
 @pytest.mark.parametrize("make, message", [
     (lambda: bpy.data.meshes.new("Empty"), "no vertices"),
     ("cube", "not planar"),
@@ -281,20 +267,59 @@ def test_a_mesh_whose_faces_share_no_vertices_deforms_as_one_piece(addon):
     np.testing.assert_array_equal(checks.mesh_points(unwelded), before)
 
 
+@pytest.mark.parametrize("loose, message", [(1, "1 vertex is on no face"), (2, "2 vertices are on no face")])
+def test_graph_mesh_refuses_vertices_on_no_face_and_says_how_many(addon, loose, message):
+    """Graph: Mesh on a grid with loose vertices beside it names them in agreement with their
+    count ("1 vertices are on no face" was said of one) and changes nothing."""
+    obj = grid()
+    obj.data.vertices.add(loose)
+    for i, vertex in enumerate(obj.data.vertices[-loose:]):
+        vertex.co = (1.5, 0.1 * i, 0.0)
+    obj.data.update()
+    obj.shapedeform.graph_mode = "OWN"
+    before = checks.snapshot()
+    with pytest.raises(RuntimeError, match=f"{message}; use the Outline graph"):
+        bpy.ops.shapedeform.bind()
+    assert checks.snapshot() == before
+
+
 def quads(nx, ny, width, height, x0, y0, start):
-    """Vertices and quads of an ``nx`` x ``ny`` grid from (x0, y0), numbered from ``start``."""
+    """A grid of nx x ny quads, width x height from (x0, y0), its vertices numbered from ``start``."""
     verts = [(x0 + width * i / nx, y0 + height * j / ny, 0.0) for j in range(ny + 1) for i in range(nx + 1)]
     faces = [[start + j * (nx + 1) + i + k for k in (0, 1, nx + 2, nx + 1)] for j in range(ny) for i in range(nx)]
     return verts, faces
 
 
 def puppet():
-    """A cut-out puppet modelled as one mesh: a body island (8 x 4 quads) and an arm island
-    lying over it, some of its vertices on the body's: (object, body vertex count, arm faces)."""
+    """A cut-out puppet modelled as one mesh: a body island (2 x 1) and an arm island lying over
+    it to x = 3, some of its vertices on the body's. Returns (object, the body's vertex count)."""
     body, body_faces = quads(8, 4, 2.0, 1.0, 0.0, 0.0, 0)
     arm, arm_faces = quads(6, 2, 1.8, 0.4, 1.2, 0.3, len(body))
-    obj = flat_mesh("Puppet", [v[:2] for v in body + arm], body_faces + arm_faces)
-    return obj, len(body), range(len(body_faces), len(body_faces) + len(arm_faces))
+    mesh = bpy.data.meshes.new("Puppet")
+    mesh.from_pydata(body + arm, [], body_faces + arm_faces)
+    obj = bpy.data.objects.new("Puppet", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    checks.select_only(obj)
+    return obj, len(body)
+
+
+def pose_puppet(obj):
+    """Bind the puppet, a handle on the body and one on the hand, the hand dragged up 1.0."""
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, (0.0, 0.5, 0.0))
+    hand = checks.add_handle(obj, (3.0, 0.5, 0.0))
+    hand.location.y += 1.0
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+
+
+def assert_arm_up_body_still(shown, rest, is_arm):
+    """The arm's points moved up 1.0 with the hand, the body's stayed (in the plane: the arm
+    also lifts in front)."""
+    moved = (shown - rest)[:, :2]
+    np.testing.assert_allclose(moved[~is_arm], 0.0, atol=1e-4)
+    np.testing.assert_allclose(moved[is_arm], np.tile([0.0, 1.0], (int(is_arm.sum()), 1)), atol=1e-4)
 
 
 def wind_the_other_way(obj, faces):
@@ -309,32 +334,25 @@ def wind_the_other_way(obj, faces):
 
 @pytest.mark.parametrize("flipped", ["none", "one arm face"])
 def test_a_puppets_overlapping_islands_move_apart(addon, flipped):
-    """The puppet's graph is the mesh itself; the arm dragged up takes all its own vertices
-    along and none of the body's (those under the arm jumped with it, and the arm's over the
-    body stayed behind, where the modifier looked points up by their place). With one arm face
-    wound the other way, its boundary read as pinched and the graph was built from the faces'
-    union, which merged the arm into the body: the body moved up to 0.73 with the hand."""
-    obj, n_body, arm_faces = puppet()
+    """Its graph is the mesh itself; the arm dragged up takes all its own vertices along and
+    none of the body's (those under the arm jumped with it, and the arm's over the body stayed
+    behind, where the modifier looked points up by their place). With one arm face wound the
+    other way, its boundary read as pinched and the graph was built from the faces' union,
+    which merged the arm into the body: the body moved up to 0.73 with the hand."""
+    obj, body = puppet()
     if flipped == "one arm face":
-        wind_the_other_way(obj, arm_faces[-1:])
+        wind_the_other_way(obj, [len(obj.data.polygons) - 1])  # the arm's faces come last
     rest = checks.mesh_points(obj).copy()
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    pose_puppet(obj)
     assert len(obj.shapedeform.cage.data.vertices) == len(rest)  # the mesh is its own graph
-    checks.add_handle(obj, (0.0, 0.5, 0.0))
-    hand = checks.add_handle(obj, (3.0, 0.5, 0.0))
-    hand.location.y += 1.0
-    bpy.context.view_layer.update()
-    assert obj.shapedeform.status == ""
-    moved = (checks.evaluated_mesh_points(obj) - rest)[:, :2]  # the arm also lifts in front
-    np.testing.assert_allclose(moved[:n_body], 0.0, atol=1e-4)
-    np.testing.assert_allclose(moved[n_body:], np.tile([0.0, 1.0], (len(rest) - n_body, 1)), atol=1e-4)
+    assert_arm_up_body_still(checks.evaluated_mesh_points(obj), rest, np.arange(len(rest)) >= body)
 
 
 def test_a_handle_at_a_selected_arm_vertex_over_the_body_moves_the_arm_only(addon):
     """Edit Mode, the puppet at rest: a handle added at one selected vertex of the arm, where
     the arm lies over the body, holds the arm alone. Its region took every graph point within
     its radius, the body's under it too, and moving the handle 0.3 tore 41 body points along."""
-    obj, n_body, _ = puppet()
+    obj, n_body = puppet()
     rest = checks.mesh_points(obj).copy()
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     checks.add_handle(obj, (0.0, 0.5, 0.0))  # the body's left end
@@ -375,6 +393,158 @@ def test_a_face_wound_the_other_way_changes_nothing(addon):
         poses[name] = checks.evaluated_mesh_points(obj)
     np.testing.assert_allclose(poses["Flipped"], poses["Grid"], atol=1e-4)
     np.testing.assert_allclose(poses["Flipped auto"], poses["Grid"], atol=1e-4)
+
+
+def _reach_key(addon, obj, body):
+    """The puppet's own shape key sliding the arm 0.03 along itself, on: [(part, its rest, arm)]."""
+    obj.shape_key_add(name="Basis")
+    reach = obj.shape_key_add(name="Reach", from_mix=False)
+    for i in range(body, len(obj.data.vertices)):
+        reach.data[i].co.x += 0.03
+    reach.value = 1.0
+    keyed = checks.mesh_points(obj).copy()
+    keyed[body:, 0] += 0.03
+    return [(obj, keyed, np.arange(len(keyed)) >= body)]
+
+
+def _body_corner_deleted(addon, obj, body):
+    """Edit Mode: the body's corner at (0, 0), far from the arm, deleted (every arm vertex's
+    index drops by one)."""
+    rest = checks.mesh_points(obj)[1:].copy()
+    bpy.ops.object.mode_set(mode="EDIT")
+    edited = bmesh.from_edit_mesh(obj.data)
+    edited.verts.ensure_lookup_table()
+    bmesh.ops.delete(edited, geom=[edited.verts[0]], context="VERTS")
+    bmesh.update_edit_mesh(obj.data)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    return [(obj, rest, np.arange(1, len(rest) + 1) >= body)]
+
+
+def _separated(addon, obj, body):
+    """Edit Mode > Separate > By Loose Parts: the arm an object of its own, following the rig."""
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="SELECT")
+    assert bpy.ops.mesh.separate(type="LOOSE") == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    parts = [o for o in bpy.data.objects if o.type == "MESH" and o.shapedeform.is_bound]
+    assert len(parts) == 2
+    return [(part, checks.mesh_points(part).copy(), np.full(len(part.data.vertices), len(part.data.vertices) != body))
+            for part in parts]
+
+
+def _refined(addon, obj, body):
+    """The modifier's Refine at 1 (the mesh subdivided before it is deformed); the refined
+    points' rest read with the hand put back, their island from the refined mesh's edges."""
+    shape_deform = addon.shapedeform_addon
+    modifier = shape_deform.rig_format.modifiers_of(obj)[0]
+    refine = shape_deform.nodes.input_identifiers(modifier.node_group)[shape_deform.nodes.REFINE_INPUT]
+    shape_deform.compat.set_modifier_input(modifier, refine, 1)
+    obj.update_tag()
+    hand = obj.shapedeform.handles[1].object
+    hand.location.y -= 1.0
+    bpy.context.view_layer.update()
+    refined = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    rest = checks.mesh_points(obj, refined).copy()
+    edges = np.array([e.vertices[:] for e in refined.edges])
+    _, island = connected_components(coo_matrix((np.ones(len(edges)), edges.T), shape=(len(rest),) * 2))
+    hand.location.y += 1.0
+    is_arm = island == island[body]  # the arm's first vertex keeps its index
+    assert is_arm.sum() > len(obj.data.vertices) - body
+    return [(obj, rest, is_arm)]
+
+
+@pytest.mark.parametrize("edit", [_reach_key, _body_corner_deleted, _separated, _refined],
+                         ids=["a shape key slides the arm", "a body vertex deleted", "separated", "Refine"])
+def test_a_puppets_arm_stays_apart_from_its_body_after_edits(addon, edit, quiet):
+    """Once the arm's vertices are no longer the cage's points of their index at their rest
+    place (a shape key, Edit Mode, Separate, Refine), each still moves with its own island:
+    4 to 31 of the arm's points over the body stayed with the body, a whole drag off, where the
+    modifier could tell the islands apart by nothing but their place."""
+    obj, body = puppet()
+    pose_puppet(obj)
+    checks.select_only(obj)
+    parts = edit(addon, obj, body)
+    bpy.context.view_layer.update()
+    for part, rest, is_arm in parts:
+        assert part.shapedeform.status == ""
+        assert_arm_up_body_still(checks.evaluated_mesh_points(part), rest, is_arm)
+
+
+def _copy(obj, linked):
+    """Shift+D (``linked`` False) or Alt+D of ``obj``: the copy follows its rig."""
+    checks.select_only(obj)
+    assert bpy.ops.object.duplicate(linked=linked) == {"FINISHED"}
+    return bpy.context.active_object
+
+
+def _unbind(obj):
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+
+
+def test_a_puppets_islands_last_through_reload_duplicates_join_and_undo_and_go_on_unbind(addon, tmp_path, quiet):
+    """Bind keeps each vertex's island in the mesh, hidden; it goes with the mesh (saved, copied,
+    joined to, undone) and Unbind removes it, from a copy's own mesh too, leaving the mesh as it
+    was; while another bound object shares the mesh, it stays for that one."""
+    obj, body = puppet()
+    before = checks.snapshot()
+    rest = checks.mesh_points(obj).copy()
+    pose_puppet(obj)
+    added = {a.name for a in obj.data.attributes} - set(before["mesh Puppet"][1])
+    assert added and all(name.startswith(".") for name in added)  # hidden from the attribute lists
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    assert added.isdisjoint(a.name for a in evaluated.attributes)  # nor left by Apply or an export
+    path = str(tmp_path / "puppet.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["Puppet"]
+    own_copy, shared_copy = _copy(obj, linked=False), _copy(obj, linked=True)
+    checks.select_only(obj)
+    edited = _body_corner_deleted(addon, obj, body)[0]  # the shared copy's mesh too
+    square, square_faces = quads(1, 1, 0.2, 0.2, 2.6, 0.4, 0)  # on the arm, off the body
+    plain = bpy.data.objects.new("Plain", bpy.data.meshes.new("Plain"))
+    plain.data.from_pydata(square, [], square_faces)
+    bpy.context.scene.collection.objects.link(plain)
+    checks.select_only(plain)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.object.join() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    joined = (np.concatenate([edited[1], np.array(square)]), np.concatenate([edited[2], np.ones(4, bool)]))
+    for part, (part_rest, is_arm) in ((obj, joined), (shared_copy, joined),
+                                      (own_copy, (rest, np.arange(len(rest)) >= body))):
+        assert_arm_up_body_still(checks.evaluated_mesh_points(part), part_rest, is_arm)
+
+    for copy in (own_copy, shared_copy):
+        _unbind(copy)
+        np.testing.assert_array_equal(checks.evaluated_mesh_points(copy), checks.mesh_points(copy))
+    assert sorted(a.name for a in own_copy.data.attributes) == before["mesh Puppet"][1]
+    assert_arm_up_body_still(checks.evaluated_mesh_points(obj), *joined)  # the shared mesh keeps them
+
+    bpy.ops.ed.undo_push(message="before unbind")
+    _unbind(obj)
+    assert sorted(a.name for a in obj.data.attributes) == before["mesh Puppet"][1]
+    bpy.ops.ed.undo_push(message="unbound")
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    obj = bpy.data.objects["Puppet"]
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.is_bound
+    assert_arm_up_body_still(checks.evaluated_mesh_points(obj), *joined)
+
+
+def test_a_puppet_bound_by_an_older_version_poses_as_it_did(addon):
+    """A rig bound before vertices kept their islands (neither the mesh nor the cage has them)
+    poses exactly as the rig bound now: unedited, its vertices are its cage's points."""
+    obj, body = puppet()
+    pose_puppet(obj)
+    posed = checks.evaluated_mesh_points(obj).copy()
+    island = addon.shapedeform_addon.nodes.ISLAND
+    for mesh in (obj.data, obj.shapedeform.cage.data):
+        mesh.attributes.remove(mesh.attributes[island])
+        mesh.update()
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), posed, atol=1e-6)
 
 
 def test_pixels_touching_at_corners_are_rigged_by_their_outline(addon):
