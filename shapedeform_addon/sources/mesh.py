@@ -42,6 +42,10 @@ OWN_GRAPH_MIN_ANGLE = np.radians(5.0)
 # and a handle's region of a few points spans most of it (a corner's handle took three corners).
 # Unless its faces overlap (a cut-out puppet's pieces): only the mesh itself keeps them apart.
 
+# Places closer than this fraction of the mesh's size are one place: faces' edges lying on one
+# another are joined (_welded); a gap so narrow between faces is no hole (_outline_graph).
+COINCIDENT = 1e-6
+
 
 def read_vectors(attribute, count):
     """A float vector attribute as a (count, 3) float32 array."""
@@ -71,14 +75,14 @@ def edges(mesh):
 
 
 def _welded(rest, flat, tris, mesh_edges):
-    """The mesh with its faces joined where their edges lie on one another (within 1e-6 of its
-    size): a mesh whose faces share no vertices (an OBJ import, Edge Split) is one piece, not an
-    island per face. Islands that only overlap (a puppet's arm over its body) stay apart, even
-    where a vertex of one lies on a vertex of the other. (Where joined faces meet at a corner
-    only, :func:`prepare` rigs the outline.) Returns (flat points (p, 2), triangles, edges,
-    each vertex's point (n,)): the mesh as it is when nothing joins."""
+    """The mesh with its faces joined where their edges lie on one another (within
+    :data:`COINCIDENT` of its size): a mesh whose faces share no vertices (an OBJ import, Edge
+    Split) is one piece, not an island per face. Islands that only overlap (a puppet's arm over
+    its body) stay apart, even where a vertex of one lies on a vertex of the other. (Where
+    joined faces meet at a corner only, :func:`prepare` rigs the outline.) Returns (flat points
+    (p, 2), triangles, edges, each vertex's point (n,)): the mesh as it is when nothing joins."""
     size = float(np.linalg.norm(np.ptp(rest, axis=0)))
-    pairs = cKDTree(rest).query_pairs(1e-6 * size, output_type="ndarray")
+    pairs = cKDTree(rest).query_pairs(COINCIDENT * size, output_type="ndarray")
     # Corners of one triangle are never joined (a strip a million times longer than wide is
     # that thin: it lost every face).
     n = len(rest)
@@ -144,13 +148,7 @@ def prepare(obj, settings):
                                  "Outline graph")
             graph = solver.Graph(flat, mesh_edges, loops, tris)
         else:
-            if pinched is None:
-                rings = [flat[loop] for loop in loops]
-                rings = with_area(rings) or rings  # a flat face's loop is left out, unless all are
-            else:
-                faces = shapely.union_all(shapely.polygons(flat[tris]))
-                rings = [ring for island in geometry_rings(faces) for ring in island]
-            graph = outline_graph(rings, settings.density)
+            graph = _outline_graph(flat, tris, loops, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     advice = ""
@@ -161,6 +159,23 @@ def prepare(obj, settings):
     if islands is None:
         return Prepared(plane, graph, advice=advice)
     return Prepared(plane, graph, lambda o: _mark_islands(o, islands[vertex_point]), advice=advice, islands=islands)
+
+
+def _outline_graph(flat, tris, loops, density):
+    """The graph of the outline of the faces (t, 3) over points (n, 2): their boundary loops
+    (None when pinched or closed), or, where those bound no sensible shape, the union of the
+    faces as the plane shows them (a bevelled curve converted to a mesh is a closed tube)."""
+    if loops is not None:
+        rings = [flat[loop] for loop in loops]
+        try:
+            return outline_graph(with_area(rings) or rings, density)  # a flat face's loop left out
+        except ValueError:
+            pass
+    faces = shapely.union_all(shapely.polygons(flat[tris]))
+    gap = COINCIDENT * float(np.linalg.norm(np.ptp(flat, axis=0)))
+    # Faces meeting edge to edge leave slits of rounding between them (1e-11 across) in the union.
+    rings = [ring for island in geometry_rings(faces) for ring in island if np.ptp(ring, axis=0).max() > gap]
+    return outline_graph(rings, density)
 
 
 def _islands(graph):

@@ -579,6 +579,29 @@ def test_pixels_touching_at_corners_are_rigged_by_their_outline(addon):
     np.testing.assert_array_equal(checks.mesh_points(obj), rest)
 
 
+def test_a_bevelled_curve_converted_to_a_mesh_is_rigged_by_what_the_plane_shows(addon):
+    """A Bezier circle bevelled into a tube, converted to a mesh: a closed surface with no
+    boundary, whose faces lie on one another in the plane. The union of its faces is a ring,
+    but faces meeting edge to edge left slits of rounding (1e-11 across) in it, and Bind said
+    "ring 3 has fewer than 3 distinct points"; the ring now poses as a ring."""
+    bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)
+    circle = bpy.context.active_object
+    circle.data.bevel_depth = 0.05
+    assert bpy.ops.object.convert(target="MESH") == {"FINISHED"}
+    obj = bpy.context.active_object
+    rest = checks.mesh_points(obj).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    cage = checks.mesh_points(obj.shapedeform.cage)[:, :2]
+    radii = np.linalg.norm(cage, axis=1)
+    assert radii.min() > 0.9 and radii.max() < 1.1  # a ring, holes of rounding left out
+    _, right = [checks.add_handle(obj, (x, 0.0, 0.0)) for x in (-1.0, 1.0)]
+    right.location.y += 0.3
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    moved = checks.evaluated_mesh_points(obj) - rest
+    assert np.all(np.isfinite(moved)) and moved[rest[:, 0] > 0.9, 1].min() > 0.25
+
+
 def test_long_thin_faces_are_flagged_at_bind_and_refine_keeps_them_from_folding(addon, capfd):
     """Issue 15, item 5: slivers spanning a bent stretch keep straight edges and turn over,
     although the map under them does not fold; the modifier's Refine subdivides them first."""
