@@ -16,7 +16,7 @@ import numpy as np
 from bpy_extras import view3d_utils
 
 from ..solver.rigging.drag import nearest, parent_offset, ray_plane, transform_points, world_plane
-from . import handles, rig, rig_format
+from . import compat, handles, rig, rig_format
 from .errors import RigError, poll_reason
 
 HEADER = {
@@ -147,26 +147,62 @@ def move(context, state, ray):
 
 
 def confirm(context, state):
-    """Keep the drag; with auto-keying on, key the moved handle's location at this frame.
+    """Keep the drag; with auto-keying on, key the moved handle as Blender's own auto-keying
+    keys an object moved with G.
 
     Returns
     -------
     list of bpy.types.Object
         The handles that were keyed.
     """
-    scene = context.scene
-    tools = scene.tool_settings
+    tools = context.scene.tool_settings
     if not (tools.use_keyframe_insert_auto and (state.moved or state.pinned)):
         return []
-    animation = state.handle.animation_data
-    if tools.auto_keying_mode == "REPLACE_KEYS" and (animation is None or animation.action is None):
-        return []  # Auto Keying's Replace mode keys only what is animated already
-    # As Blender's own auto-keying: the key type chosen in the timeline, and with "Only Insert
-    # Needed" no key where the curve already has the value.
-    needed = context.preferences.edit.use_auto_keyframe_insert_needed
-    state.handle.keyframe_insert("location", frame=scene.frame_current, keytype=tools.keyframe_type,
-                                 options={"INSERTKEY_NEEDED"} if needed else set())
-    return [state.handle]
+    return [state.handle] if _auto_key(context, state.handle) else []
+
+
+def _auto_key(context, handle):
+    """Key ``handle``'s move as Blender's auto-keying keys an object moved with G: at the
+    (sub)frame shown, with the timeline's key type; in Replace mode only keys there already;
+    through the active keying set when Only Active Keying Set is on; else location,
+    rotation and scale, or with Only Insert Needed the location alone where it changed; and
+    honouring Only Insert Available, Visual Keying and Cycle-Aware Keying. Returns whether
+    anything was keyed."""
+    scene = context.scene
+    tools, edit = scene.tool_settings, context.preferences.edit
+    frame = scene.frame_current_final
+    if tools.auto_keying_mode == "REPLACE_KEYS" and round(frame, 2) not in _key_frames(handle):
+        return False
+    keying_set = scene.keying_sets_all.active
+    if tools.use_keyframe_insert_keyingset and keying_set is not None:
+        with context.temp_override(active_object=handle, object=handle, selected_objects=[handle],
+                                   selected_editable_objects=[handle]):
+            return bpy.ops.anim.keyframe_insert_by_name(type=keying_set.bl_idname) == {"FINISHED"}
+    flags = {"INSERTKEY_AVAILABLE": edit.use_keyframe_insert_available,
+             "INSERTKEY_NEEDED": edit.use_auto_keyframe_insert_needed,
+             "INSERTKEY_VISUAL": edit.use_visual_keying,
+             "INSERTKEY_CYCLE_AWARE": tools.use_keyframe_cycle_aware,
+             "INSERTKEY_REPLACE": tools.auto_keying_mode == "REPLACE_KEYS"}
+    options = {flag for flag, on in flags.items() if on}
+    paths = ["location"] if edit.use_auto_keyframe_insert_needed else ["location", _ROTATIONS.get(
+        handle.rotation_mode, "rotation_euler"), "scale"]
+    keyed = [handle.keyframe_insert(path, frame=frame, keytype=tools.keyframe_type, options=options) for path in paths]
+    return any(keyed)
+
+
+# The property an object's rotation is keyed on, by rotation mode (Euler modes otherwise).
+_ROTATIONS = {"QUATERNION": "rotation_quaternion", "AXIS_ANGLE": "rotation_axis_angle"}
+
+
+def _key_frames(obj):
+    """The frames ``obj``'s own action has keys on, for its slot (to 1/100 of a frame, as
+    Blender tells a key on a frame)."""
+    animation = obj.animation_data
+    if animation is None or animation.action is None:
+        return []
+    bag = compat.channelbag(animation.action, animation.action_slot)
+    curves = [] if bag is None else bag.fcurves
+    return {round(key.co[0], 2) for curve in curves for key in curve.keyframe_points}
 
 
 def cancel(context, state):

@@ -162,10 +162,22 @@ def test_a_baked_rig_offers_no_drag_and_says_why(addon):
     assert bpy.ops.shapedeform.drag.poll()
 
 
-def test_auto_keying_keys_the_moved_handle(addon):
+@pytest.fixture
+def keying_preferences():
+    """The keying preferences a test changes, put back afterwards (they outlive the file)."""
+    edit = bpy.context.preferences.edit
+    names = ("use_keyframe_insert_available", "use_auto_keyframe_insert_needed", "use_visual_keying")
+    saved = {name: getattr(edit, name) for name in names}
+    yield edit
+    for name, value in saved.items():
+        setattr(edit, name, value)
+
+
+def test_auto_keying_keys_the_moved_handle(addon, keying_preferences):
     obj, left, right = rig_with_two_handles()
     scene = bpy.context.scene
     scene.tool_settings.use_keyframe_insert_auto = True
+    keying_preferences.use_keyframe_insert_available = False  # on by default in Blender 5.2
     scene.frame_set(7)
     drag = addon.shapedeform_addon.drag
     ray = lambda p: (np.array([p[0], p[1], 5.0]), np.array([0.0, 0.0, -1.0]))  # noqa: E731
@@ -178,18 +190,87 @@ def test_auto_keying_keys_the_moved_handle(addon):
     keyed = {(c.data_path, c.array_index): [tuple(k.co) for k in c.keyframe_points] for c in bag.fcurves}
     assert keyed[("location", 1)] == [(7.0, right.location.y)]
     assert left.animation_data is None
-    # As Blender's auto-keying: the timeline's key type; in Replace mode only what is animated.
+    # As Blender's auto-keying: the timeline's key type.
     scene.tool_settings.keyframe_type = "BREAKDOWN"
-    scene.tool_settings.auto_keying_mode = "REPLACE_KEYS"
-    for handle in (right, left):
-        scene.frame_set(9)
-        start = np.array(handle.matrix_world.translation)
-        state = drag.begin(bpy.context, obj, ray(start))
-        drag.move(bpy.context, state, ray(start + [0.0, 0.2, 0.0]))
-        assert drag.confirm(bpy.context, state) == ([right] if handle == right else [])
+    scene.frame_set(9)
+    start = np.array(right.matrix_world.translation)
+    state = drag.begin(bpy.context, obj, ray(start))
+    drag.move(bpy.context, state, ray(start + [0.0, 0.2, 0.0]))
+    assert drag.confirm(bpy.context, state) == [right]
     curve = next(c for c in bag.fcurves if (c.data_path, c.array_index) == ("location", 1))
     assert [k.type for k in curve.keyframe_points] == ["KEYFRAME", "BREAKDOWN"]
-    assert left.animation_data is None
+
+
+def keyed(obj):
+    """{(data path, index): [key frames]} of ``obj``'s action, {} when it has none."""
+    animation = obj.animation_data
+    if animation is None or animation.action is None:
+        return {}
+    bag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+    return {(c.data_path, c.array_index): [round(k.co[0], 4) for k in c.keyframe_points] for c in bag.fcurves}
+
+
+def in_viewport():
+    """A context override in a 3D viewport (the first area of the window, turned into one)."""
+    window = bpy.context.window
+    area = window.screen.areas[0]
+    area.type = "VIEW_3D"
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    return bpy.context.temp_override(window=window, area=area, region=region)
+
+
+def moved_with_g(obj, offset):
+    """Blender's own move of ``obj`` alone, in a 3D viewport (what auto-keying answers to)."""
+    checks.select_only(obj)
+    with in_viewport():
+        assert bpy.ops.transform.translate(value=offset) == {"FINISHED"}
+
+
+def _animated_in_y(handle, frames):
+    for frame in frames:
+        handle.keyframe_insert("location", index=1, frame=frame)
+
+
+def _keying_set(scene):
+    scene.tool_settings.use_keyframe_insert_keyingset = True
+    scene.keying_sets_all.active = next(k for k in scene.keying_sets_all if k.bl_idname == "BUILTIN_KSI_LocRot")
+
+
+@pytest.mark.parametrize("setting", ["default", "only available", "only available, y animated", "keying set",
+                                     "subframe", "replace mode, y animated", "replace mode, y keyed here",
+                                     "only needed, y animated"])
+def test_auto_keying_keys_a_drag_as_blender_keys_a_move(addon, setting, keying_preferences):
+    """A handle dragged with auto-keying on gets the keys Blender's G gives the other handle:
+    the drag keyed location at the whole frame whatever the settings (keys on channels Only
+    Insert Available leaves alone, none of the active keying set's rotation, a key at 4.0 that
+    pulled a handle dropped at 4.5 back by 0.05)."""
+    obj, left, right = rig_with_two_handles()
+    scene = bpy.context.scene
+    scene.tool_settings.use_keyframe_insert_auto = True
+    keying_preferences.use_keyframe_insert_available = setting.startswith("only available")
+    keying_preferences.use_auto_keyframe_insert_needed = setting.startswith("only needed")
+    scene.tool_settings.auto_keying_mode = "REPLACE_KEYS" if setting.startswith("replace") else "ADD_REPLACE_KEYS"
+    for handle in (left, right):
+        _animated_in_y(handle, [1] if setting.endswith("animated") else [1, 4] if setting.endswith("here") else [])
+    if setting == "keying set":
+        _keying_set(scene)
+    frame, subframe = (4, 0.5) if setting == "subframe" else (4, 0.0)
+    scene.frame_set(frame, subframe=subframe)
+    moved_with_g(left, (0.0, 0.2, 0.0))
+    drag = addon.shapedeform_addon.drag
+    ray = lambda p: (np.array([p[0], p[1], 5.0]), np.array([0.0, 0.0, -1.0]))  # noqa: E731
+    start = np.array(right.matrix_world.translation)
+    state = drag.begin(bpy.context, obj, ray(start))
+    drag.move(bpy.context, state, ray(start + [0.0, 0.2, 0.0]))
+    before = keyed(left)
+    with in_viewport():  # where the drag runs (keying sets key through an operator)
+        drag.confirm(bpy.context, state)
+    assert keyed(right) == keyed(left) and (before != {} or setting.startswith("only available"))
+    dropped = left.location.y, right.location.y
+    scene.frame_set(frame + 2)
+    scene.frame_set(frame, subframe=subframe)
+    # Where the keys leave each: the dragged one as the moved one (dropped, or back on its curve).
+    assert right.location.y - dropped[1] == pytest.approx(left.location.y - dropped[0], abs=1e-5)
 
 
 def test_undo_after_a_drag_gives_back_the_pose_and_the_rig_keeps_working(addon):
