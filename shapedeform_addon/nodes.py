@@ -76,6 +76,7 @@ CAGE_INPUT, RIGGED_INPUT = "Cage", "Rigged Layers"
 # Object; only a linked library's group can still have it (``handles.follow``).
 LEGACY_OWNER_INPUT = "Owner"
 REFINE_INPUT, ORDER_INPUT = "Refine", "Stroke Order"
+REFINE_MOST = 6  # the most times Refine subdivides
 KEPT_INPUTS = (CAGE_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT)
 
 
@@ -224,7 +225,7 @@ def _interface(group):
     refine = group.interface.new_socket(REFINE_INPUT, in_out="INPUT", socket_type="NodeSocketInt")
     refine.description = ("Subdivide a mesh's faces this many times before deforming it, so long thin "
                           "faces (text, n-gon fills) bend instead of folding; 0 keeps the mesh as it is")
-    refine.default_value, refine.min_value, refine.max_value = 0, 0, 6
+    refine.default_value, refine.min_value, refine.max_value = 0, 0, REFINE_MOST
     order = group.interface.new_socket(ORDER_INPUT, in_out="INPUT", socket_type="NodeSocketBool")
     order.description = ("Grease pencil: in each layer, draw the strokes lying on a part the pose folds over "
                          "another after the others, which keep their order. While a stroke is moved, each layer "

@@ -31,7 +31,7 @@ from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from .. import compat
 from ..errors import RigError
-from ..nodes import REFINE_INPUT
+from ..nodes import REFINE_INPUT, REFINE_MOST
 from ..rig_format import PATH_TURNED_OFF, follows_by_constraint
 from .mesh import edges, positions
 from .prepared import Prepared
@@ -178,7 +178,7 @@ def _fill_refinement(obj, plane, graph):
     evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
     fill = evaluated.to_mesh()
     try:
-        return refine_level(plane.to_2d(positions(fill)), edges(fill), len(fill.polygons), graph)
+        return refine_level(plane.to_2d(positions(fill)), edges(fill), len(fill.polygons), graph.spacing, REFINE_MOST)
     finally:
         evaluated.to_mesh_clear()
 

@@ -13,6 +13,10 @@ from scipy.sparse.csgraph import connected_components
 
 from ..shapes import clean_ring
 
+# Faces a refined fill may have: about the points of the 50,000-vertex mesh whose evaluation
+# docs/addon_speed.md times at 2.7 ms (benchmarks/addon_speed.py), so a text keeps playing live.
+REFINE_BUDGET = 50_000
+
 __all__ = ["boundary_loops", "sample_bezier", "smallest_angles", "with_area", "wound_alike", "refine_level"]
 
 
@@ -193,14 +197,13 @@ def with_area(rings):
     return kept
 
 
-def refine_level(points, edges, face_count, graph, most=6):
+def refine_level(points, edges, face_count, spacing, most, budget=REFINE_BUDGET):
     """How many times to subdivide a fill (a text's or filled curve's faces, which span the
     shape from outline to outline) before it is mapped through the cage.
 
     The cage's map is linear within each of its triangles, so a face bends only where it has
     vertices: each level halves the fill's edges, until the longest is no longer than the
-    graph's spacing; but no further than leaves the fill with more faces than the cage has
-    triangles, as finer than the cage adds nothing.
+    graph's spacing, and makes four faces of each, up to ``budget`` faces in all.
 
     Parameters
     ----------
@@ -208,10 +211,13 @@ def refine_level(points, edges, face_count, graph, most=6):
         The fill's vertices, in the graph's plane.
     edges : (k, 2) array_like of int
     face_count : int
-        Faces of the fill (each level makes four of each).
-    graph : solver.Graph
+        Faces of the fill.
+    spacing : float
+        The graph's spacing (:attr:`solver.Graph.spacing`).
     most : int
         The highest level the deformer offers.
+    budget : int
+        The most faces the refined fill may have.
 
     Returns
     -------
@@ -223,6 +229,6 @@ def refine_level(points, edges, face_count, graph, most=6):
         return 0
     points = np.asarray(points, dtype=np.float64)
     longest = float(np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1).max())
-    needed = np.ceil(np.log2(max(longest / graph.spacing, 1.0)))
-    affordable = np.floor(np.log(max(len(graph.triangles) / face_count, 1.0)) / np.log(4.0))
+    needed = np.ceil(np.log2(max(longest / spacing, 1.0)))
+    affordable = np.floor(np.log(max(budget / face_count, 1.0)) / np.log(4.0))
     return int(min(needed, affordable, most))

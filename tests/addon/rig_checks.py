@@ -58,6 +58,18 @@ def evaluated_vertices(obj):
     return points
 
 
+def refine(shapedeform, obj, level=None):
+    """The Refine input of ``obj``'s Shape Deform modifier, set first when ``level`` is given
+    (``shapedeform``: the add-on's module, as the ``addon`` fixture gives it)."""
+    modifier = shapedeform.rig_format.modifiers_of(obj)[0]
+    identifier = shapedeform.nodes.input_identifiers(modifier.node_group)["Refine"]
+    if level is not None:
+        shapedeform.compat.set_modifier_input(modifier, identifier, level)
+        obj.update_tag()
+        bpy.context.view_layer.update()
+    return shapedeform.compat.modifier_input(modifier, identifier)
+
+
 def evaluated_mesh_points(obj):
     depsgraph = bpy.context.evaluated_depsgraph_get()
     return mesh_points(obj, obj.evaluated_get(depsgraph).data)

@@ -44,6 +44,7 @@ def test_text_curve_with_holes_follows_and_unbinds_exactly(addon, tmp_path):
     rest_cos = np.concatenate([p[:len(p)] for p in rest])
     rest_shape = checks.evaluated_vertices(obj)
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.refine(addon.shapedeform_addon, obj, 0)  # the fill's own points, to follow them one by one
     lo, hi = rest_cos.min(axis=0), rest_cos.max(axis=0)
     checks.add_handle(obj, checks.world(obj, [lo[0], 0.5 * (lo[1] + hi[1]), 0]))
     handle = checks.add_handle(obj, checks.world(obj, [0.8 * lo[0] + 0.2 * hi[0], hi[1], 0]))
@@ -178,6 +179,7 @@ def test_an_open_spline_beside_a_closed_one_is_part_of_the_shape(addon, capfd):
     rest = checks.evaluated_vertices(obj)
     capfd.readouterr()
     *_, tip = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [3.0, 0.0, 0.0])
+    checks.refine(addon.shapedeform_addon, obj, 0)  # the fill's own points, to follow them one by one
     assert "off it" not in capfd.readouterr().out
     tip.location.y += 1.0
     bpy.context.view_layer.update()

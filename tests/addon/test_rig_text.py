@@ -36,6 +36,7 @@ def test_a_text_object_is_posed_as_text_and_unbinds_to_itself(addon, tmp_path):
     checks.bind_with_handles(obj, at_left, rest[grip])
     right = obj.shapedeform.handles[1].object
     assert obj.type == "FONT" and obj.shapedeform.kind == "TEXT"
+    checks.refine(addon.shapedeform_addon, obj, 0)  # the fill's own points, to follow them one by one
     np.testing.assert_allclose(checks.evaluated_vertices(obj), rest, atol=1e-4)
     right.location.y += 0.3
     bpy.context.view_layer.update()
@@ -92,6 +93,7 @@ def test_text_typed_after_binding_follows_the_pose(addon):
     lo, hi = rest.min(axis=0), rest.max(axis=0)
     middle = 0.5 * (lo[1] + hi[1])
     _, right = checks.bind_with_handles(obj, [lo[0] + 0.02, middle, 0], [hi[0] - 0.02, middle, 0])
+    checks.refine(addon.shapedeform_addon, obj, 0)  # the fill's own points, to compare them one by one
     right.location.y += 0.2
     bpy.context.view_layer.update()
     posed = checks.evaluated_vertices(obj)
@@ -108,17 +110,6 @@ def test_text_typed_after_binding_follows_the_pose(addon):
     assert new.min() > new_rest.min() + 0.1 and new.max() > new_rest.max() + 0.1  # carried up with the right side
 
 
-def refine(shapedeform, obj, level=None):
-    """The Refine input of ``obj``'s Shape Deform modifier; set first when ``level`` is given."""
-    modifier = shapedeform.rig_format.modifiers_of(obj)[0]
-    identifier = shapedeform.nodes.input_identifiers(modifier.node_group)["Refine"]
-    if level is not None:
-        shapedeform.compat.set_modifier_input(modifier, identifier, level)
-        obj.update_tag()
-        bpy.context.view_layer.update()
-    return shapedeform.compat.modifier_input(modifier, identifier)
-
-
 def test_a_letter_bends_with_its_rig(addon):
     """Bfont's I is one quad from foot to head: mapped at its four corners it would stay a
     straight bar while the rig bends it (0.14 off at mid height, 5% of its size). Bind refines
@@ -133,7 +124,7 @@ def test_a_letter_bends_with_its_rig(addon):
     top.location.x += 1.5
     bpy.context.view_layer.update()
     shapedeform = addon.shapedeform_addon
-    assert refine(shapedeform, obj) > 0
+    assert checks.refine(shapedeform, obj) > 0
 
     def shown_area():
         evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
@@ -145,9 +136,21 @@ def test_a_letter_bends_with_its_rig(addon):
         return shapely.union_all(shapely.polygons(points[tris]))
 
     shown = shown_area()
-    refine(shapedeform, obj, 6)  # the cage's own map, as finely as the modifier maps
+    checks.refine(shapedeform, obj, 6)  # the cage's own map, as finely as the modifier maps
     bent = shown_area()
     assert shown.symmetric_difference(bent).area < 0.01 * bent.area
+
+
+def test_a_line_of_text_is_refined_within_its_budget(addon):
+    """Two words (449 fill faces): their fill is cut too (it was left whole, as the cut was
+    capped by the cage's triangle count), but no finer than the budget that keeps it live."""
+    obj = text("Hello world")
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert checks.refine(addon.shapedeform_addon, obj) >= 2
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    faces = len(evaluated.to_mesh().polygons)
+    evaluated.to_mesh_clear()
+    assert faces <= 50_000
 
 
 def test_add_handle_in_text_edit_mode_says_how(addon):

@@ -177,19 +177,17 @@ def test_with_area_leaves_out_rings_on_one_line():
     assert len(kept) == 1 and kept[0] is square
 
 
-@pytest.mark.parametrize("height", [0.5, 2.0, 7.0])
-def test_refine_level_cuts_a_fill_to_the_graphs_spacing_within_the_cages_resolution(height):
-    """A rectangle filled by two triangles spanning it (as a text's letter is), rigged by a graph
-    of its outline: each level halves the fill's edges; it stops where the longest is no longer
-    than the graph's spacing, or where the fill would have more faces than the cage."""
-    from solver.outline import outline_graph
-
+@pytest.mark.parametrize("height, budget", [(0.5, 50_000), (2.0, 50_000), (7.0, 50_000), (7.0, 100)])
+def test_refine_level_cuts_a_fill_to_the_spacing_within_its_budget(height, budget):
+    """A rectangle filled by two triangles spanning it (as a text's letter is): each level
+    halves the fill's edges; it stops where the longest is no longer than the spacing, or where
+    the fill would have more faces than its budget, or at the deformer's most."""
     corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, height], [0.0, height]])
-    graph = outline_graph([corners], 300)
     edges = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [0, 2]])
-    level = refine_level(corners, edges, 2, graph)
+    spacing, most = 0.02, 6
+    level = refine_level(corners, edges, 2, spacing, most, budget)
     longest = np.hypot(1.0, height)
-    assert 2 * 4 ** level <= len(graph.triangles)
-    assert longest / 2 ** level <= graph.spacing or 2 * 4 ** (level + 1) > len(graph.triangles)
-    assert level == 0 or longest / 2 ** (level - 1) > graph.spacing  # no finer than needed
-    assert refine_level(corners, edges, 0, graph) == 0  # edges alone (an unfilled curve)
+    assert 2 * 4 ** level <= budget and level <= most
+    assert longest / 2 ** level <= spacing or 2 * 4 ** (level + 1) > budget or level == most
+    assert level == 0 or longest / 2 ** (level - 1) > spacing  # no finer than needed
+    assert refine_level(corners, edges, 0, spacing, most, budget) == 0  # edges alone (an unfilled curve)
