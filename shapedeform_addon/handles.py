@@ -81,20 +81,24 @@ def collection(obj):
     return collection
 
 
-def add(obj, location, on_rest=False, kind="POSITION", notes=None):
+def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0):
     """Add a handle at a world ``location`` (projected onto the shape's plane).
 
     The handle owns the graph points near the place on the rest shape that is now under
-    ``location`` (or, with ``on_rest``, that ``location`` is at on the unposed shape), on the
-    piece of the graph nearest that place (islands that overlap stay apart); their
-    offsets are taken from their current (posed) positions, so adding a handle does not move
-    the shape.
+    ``location`` (or, with ``on_rest``, that ``location`` is at on the unposed shape), on one
+    piece of the graph (islands that overlap stay apart): ``island``'s, else the piece of the
+    layer there nearest ``location``'s depth as shown (in front for a location under them
+    all), else, off the shape, the nearest point's (:func:`_piece`). Their offsets are taken from their
+    current (posed) positions, so adding a handle does not move the shape.
 
     A pin (``kind`` 'OVERLAP' or 'STARCH') pulls nothing: it is bound to the graph point under
     ``location`` and vertex-parented to that point of the cage, so it follows the shape.
 
     A handle placed further off the shape than its region's radius holds the nearest part at a
     distance, as a lever: ``notes`` (a list), when given, gets a sentence saying so.
+
+    ``island``, where known, is the island + 1 of the vertex ``location`` is at (see
+    ``sources.selected_islands``; 0: not known).
 
     Returns
     -------
@@ -114,19 +118,21 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     world = rig_format.rig_space(obj)
     graph = rig.graph
     try:
-        point, rest_centre = place(rig.plane, world, location, graph.points, rig.posed, graph.triangles, on_rest,
-                                   posed_heights=rig.plane.heights(rig.shown))
+        point, rest_centre, triangle = place(rig.plane, world, location, graph.points, rig.posed, graph.triangles,
+                                             on_rest, posed_heights=rig.plane.heights(rig.shown))
     except ValueError as err:
         raise RigError(f"'{obj.name}': {err}") from None
+    pieces, piece = _piece(obj, graph, triangle, island)
     if kind != "POSITION":
         if notes is not None and distance_off(rig.posed, graph.triangles, point) > 1e-4 * graph.size:
             notes.append(f"the {kind.lower()} pin was added off the shape: it is on the shape's nearest point")
-        return _add_pin(obj, rig, int(select_region(graph.points, rest_centre, 0.0, minimum=1)[0]), kind)
+        return _add_pin(obj, rig, int(select_region(graph.points, rest_centre, 0.0, minimum=1, pieces=pieces,
+                                                    piece=piece)[0]), kind)
     taken = np.zeros(graph.n, dtype=bool)
     taken[rig.indices] = True
     try:
         region = select_region(graph.points, rest_centre, settings.region_size * graph.size, taken,
-                               pieces=graph.components())
+                               pieces=pieces, piece=piece)
     except ValueError as err:  # every point is taken
         raise NoPointsLeft(f"{err} (lower Handle Region, or bind again with a higher Graph Density for more "
                            "points)") from None
@@ -148,6 +154,17 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None):
     rig_format.keep_handles_evaluated(obj)
     rigs.invalidate(obj)
     return empty
+
+
+def _piece(obj, graph, triangle, island):
+    """Each graph point's piece (n,) and the piece a handle is on: ``island`` (a vertex's
+    island + 1) where the cage keeps the islands, else that of ``triangle``, the graph's
+    triangle under the handle (None: not known; the region's nearest point's piece is taken)."""
+    islands = rig_format.islands_of(obj.shapedeform.cage.data) if island else None
+    if islands is not None and np.any(islands == island):
+        return islands, island
+    pieces = graph.components()
+    return pieces, None if triangle is None else pieces[graph.triangles[triangle, 0]]
 
 
 def _new_handle_empty(obj, world_matrix, radius):
@@ -175,13 +192,15 @@ def _new_handle_empty(obj, world_matrix, radius):
     return empty
 
 
-def add_all(obj, locations, kind="POSITION", on_rest=False, notes=None):
+def add_all(obj, locations, kind="POSITION", on_rest=False, notes=None, islands=None):
     """:func:`add` at each of ``locations`` (k, 3), all or none: the Empties added, or RigError
-    with none left behind."""
+    with none left behind. ``islands`` (k,), where known, are the islands + 1 of the vertices
+    they are at."""
     added = []
+    islands = np.zeros(len(locations), dtype=np.int64) if islands is None else islands
     try:
-        for location in locations:
-            added.append(add(obj, location, on_rest=on_rest, kind=kind, notes=notes))
+        for location, island in zip(locations, islands):
+            added.append(add(obj, location, on_rest=on_rest, kind=kind, notes=notes, island=int(island)))
     except RigError as err:
         if added:
             remove(obj, set(added))

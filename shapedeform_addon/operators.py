@@ -115,8 +115,9 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
         try:
             # Leaving Edit Mode writes the selection into the data.
             with _in_object_mode(active):
-                added = handles.add_all(obj, self._locations(context, active, obj, given, at_selection),
-                                        kind=self.kind, on_rest=at_selection, notes=notes)
+                locations, islands = self._locations(context, active, obj, given, at_selection)
+                added = handles.add_all(obj, locations, kind=self.kind, on_rest=at_selection, notes=notes,
+                                        islands=islands)
                 rig.pose_safely(obj, context.evaluated_depsgraph_get())
         except RigError as err:
             self.report({"ERROR"}, str(err))
@@ -137,7 +138,8 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
         return {"FINISHED"}
 
     def _locations(self, context, active, obj, given, at_selection):
-        """World locations (k, 3) of the handles to add, in the rig owner's space."""
+        """World locations (k, 3) of the handles to add, in the rig owner's space, and at a
+        selection the islands + 1 (k,) of its points where the object keeps them (else None)."""
         if not at_selection:
             # As Blender adds things in Object Mode: at the 3D cursor (projected onto the plane).
             locations = np.array([self.location if given else context.scene.cursor.location], dtype=np.float64)
@@ -145,17 +147,18 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
                 # On a duplicate that follows the rig: the same place on the owner.
                 onto_owner = np.array(obj.matrix_world) @ affine_inverse(np.array(active.matrix_world))
                 locations = transform_points(onto_owner, locations)
-            return locations
-        local = sources.module_for(active).selected(active)
+            return locations, None
+        local, islands = sources.module_for(active).selected(active), sources.selected_islands(active)
         if len(local) == 0:
             raise RigError("Select points of the shape, or give a location")
         if self.kind != "POSITION":
             # One pin for the selection (a pin per point would add up: 63 of them lifted a hand
             # by more than the shape's size), on its point nearest the selection's centre.
-            local = local[[np.argmin(np.linalg.norm(local - local.mean(axis=0), axis=1))]]
+            centre = [np.argmin(np.linalg.norm(local - local.mean(axis=0), axis=1))]
+            local, islands = local[centre], None if islands is None else islands[centre]
         # Through the owner's matrix: a duplicate that follows its rig shares the owner's rest
         # shape in its own local coordinates, wherever the duplicate stands.
-        return transform_points(obj.matrix_world, local)
+        return transform_points(obj.matrix_world, local), islands
 
 
 class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):

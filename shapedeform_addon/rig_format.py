@@ -358,6 +358,17 @@ def shown_pose(cage):
     return mix
 
 
+def islands_of(mesh):
+    """Each point's island + 1, (n,) int32, that ``mesh`` keeps (:data:`nodes.ISLAND`: on a
+    cage's points, or a mesh's vertices; 0 where not known), or None where it keeps none."""
+    attribute = mesh.attributes.get(nodes.ISLAND)
+    if attribute is None or attribute.domain != "POINT" or attribute.data_type != "INT":
+        return None
+    islands = np.empty(len(mesh.vertices), dtype=np.int32)
+    attribute.data.foreach_get("value", islands)
+    return islands
+
+
 def rest_of(cage):
     """The cage's rest points (n, 3) float32, as stored at bind time."""
     return _points(cage.data, cage.data.attributes[nodes.REST].data)

@@ -15,13 +15,19 @@ Each source module offers the same functions:
     rig can always be unbound: it gives back what it can and returns what it could not.
 ``selected(obj) -> (k, 3) float64``
     Local rest positions of the selected points (for a handle at each).
+
+Where a source's points keep their island (a mesh that is its own graph in several islands),
+it also offers ``selected_islands(obj) -> (k,) int or None``: each selected point's island + 1
+(0 where not known), in ``selected``'s order, or None where the object keeps none. It tells
+which part a handle at a selected point holds where islands overlap (a puppet's arm vertex on
+a body vertex); :func:`selected_islands` gives None for the other sources.
 """
 
 from ..errors import RigError, with_article
 from . import curve, grease_pencil, image_plane, mesh, text
 from .prepared import Prepared
 
-__all__ = ["RigError", "with_article", "type_name", "Prepared", "module_for", "kind_of"]
+__all__ = ["RigError", "with_article", "type_name", "Prepared", "module_for", "kind_of", "selected_islands"]
 
 
 def type_name(obj):
@@ -60,3 +66,10 @@ def kind_of(obj):
                        "geometry to deform: add the picture as a plane (Add > Image > Mesh Plane) and bind that")
     raise RigError(f"'{obj.name}' is {with_article(type_name(obj))} object: Shape Deform rigs meshes, curves, "
                    "text, grease pencil and image planes")
+
+
+def selected_islands(obj):
+    """The islands + 1 (k,) of ``obj``'s selected points, where its source keeps them, else None
+    (see the package's docstring; call in Object Mode)."""
+    islands = getattr(module_for(obj), "selected_islands", None)
+    return None if islands is None else islands(obj)

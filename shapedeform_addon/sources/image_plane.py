@@ -27,7 +27,7 @@ from . import mesh as mesh_source
 from .prepared import Prepared
 
 # Shared with meshes once the cut-out is in place.
-selected = mesh_source.selected
+selected, selected_islands = mesh_source.selected, mesh_source.selected_islands
 
 
 def _material_index(obj):

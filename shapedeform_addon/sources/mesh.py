@@ -26,6 +26,7 @@ from ...solver.triangulate import triangle_cross
 from ...solver.wording import by_count
 from ...solver.rigging.outline import boundary_loops, smallest_angles, with_area
 from ...solver.rigging.plane import fit_plane
+from .. import rig_format
 from ..errors import RigError
 from ..nodes import ISLAND
 from .prepared import Prepared
@@ -233,7 +234,18 @@ def restore_legacy(obj):
 
 def selected(obj):
     """Local rest positions (k, 3) of the selected vertices (call in Object Mode)."""
-    mesh = obj.data
+    return positions(obj.data)[_selection(obj.data)].astype(np.float64)
+
+
+def selected_islands(obj):
+    """Each selected vertex's island + 1 (k,) int32, in :func:`selected`'s order (0: not known,
+    a vertex added since binding), or None where the mesh keeps none (call in Object Mode)."""
+    islands = rig_format.islands_of(obj.data)
+    return None if islands is None else islands[_selection(obj.data)]
+
+
+def _selection(mesh):
+    """Which vertices (v,) bool are selected."""
     mask = np.zeros(len(mesh.vertices), dtype=bool)
     mesh.vertices.foreach_get("select", mask)
-    return positions(mesh)[mask].astype(np.float64)
+    return mask

@@ -100,7 +100,7 @@ def invert_affine(affine):
     return np.linalg.inv(affine)
 
 
-def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS, pieces=None):
+def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS, pieces=None, piece=None):
     """Graph points a handle at ``centre`` owns.
 
     Parameters
@@ -117,8 +117,13 @@ def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS,
     minimum : int
     pieces : (n,) array_like of int, optional
         Which piece of the shape each point is on (:meth:`solver.Graph.components`): the region
-        stays on the piece of the point nearest ``centre``, so a handle on a puppet's arm lying
-        over its body takes none of the body's points. Without it, any point near enough.
+        stays on one piece, so a handle on a puppet's arm lying over its body takes none of the
+        body's points. Without it, any point near enough.
+    piece : int, optional
+        The piece (a value of ``pieces``) the handle is on, where the caller knows it (the
+        island of a selected vertex, the triangle a location falls on): where pieces overlap,
+        points of several lie at ``centre``. By default the piece of the point nearest
+        ``centre`` (the lowest index among points as near).
 
     Returns
     -------
@@ -134,7 +139,8 @@ def select_region(points, centre, radius, taken=None, minimum=MIN_REGION_POINTS,
     distance = np.linalg.norm(points - np.asarray(centre, dtype=np.float64), axis=1)
     if pieces is not None:
         pieces = np.asarray(pieces)
-        distance = np.where(pieces == pieces[np.argmin(distance)], distance, np.inf)
+        piece = pieces[np.argmin(distance)] if piece is None else piece
+        distance = np.where(pieces == piece, distance, np.inf)
     if taken is not None:
         distance = np.where(np.asarray(taken, dtype=bool), np.inf, distance)
     order = np.argsort(distance, kind="stable")
@@ -282,6 +288,10 @@ def place(plane, space, location, rest_points, posed_points, triangles, on_rest=
         The handle's place on the posed shape.
     rest_centre : (2,) float64 ndarray
         The rest point under it, around which its region is chosen.
+    triangle : int or None
+        The triangle it lies on, in the layer chosen (with ``posed_heights``): its piece is the
+        one the handle is on, where pieces overlap. None where that is not known (on the rest
+        shape, off the shape, or without heights).
 
     Raises
     ------
@@ -301,11 +311,11 @@ def place(plane, space, location, rest_points, posed_points, triangles, on_rest=
     if not np.all(np.isfinite(point)):
         raise ValueError("the handle's location is not a finite point")
     if on_rest:  # placed where that rest point is now, so it holds the shape as it is
-        return rest_position(posed_points, rest_points, triangles, point[None])[0], point
+        return rest_position(posed_points, rest_points, triangles, point[None])[0], point, None
     triangles = np.asarray(triangles, dtype=np.int64)
     layer = None if posed_heights is None else \
         _layer_at(posed_points, posed_heights, triangles, point, plane.heights(in_rig)[0])
     if layer is None:
-        return point, rest_position(rest_points, posed_points, triangles, point[None])[0]
+        return point, rest_position(rest_points, posed_points, triangles, point[None])[0], None
     triangle, weights = layer
-    return point, weights @ np.asarray(rest_points, dtype=np.float64)[triangles[triangle]]
+    return point, weights @ np.asarray(rest_points, dtype=np.float64)[triangles[triangle]], int(triangle)

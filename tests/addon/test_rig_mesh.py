@@ -359,19 +359,72 @@ def test_a_handle_at_a_selected_arm_vertex_over_the_body_moves_the_arm_only(addo
     checks.add_handle(obj, (3.0, 0.5, 0.0))  # the arm's hand
     elbow = n_body + int(np.argmin(np.linalg.norm(rest[n_body:, :2] - [1.8, 0.3], axis=1)))
     assert np.linalg.norm(rest[:n_body, :2] - rest[elbow, :2], axis=1).min() < 0.1  # the body's near
-    checks.select_only(obj)
-    bpy.ops.object.mode_set(mode="EDIT")
-    bpy.ops.mesh.select_all(action="DESELECT")
-    bpy.ops.object.mode_set(mode="OBJECT")
-    obj.data.vertices[elbow].select = True
-    bpy.ops.object.mode_set(mode="EDIT")
-    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
-    bpy.ops.object.mode_set(mode="OBJECT")
+    moved = moved_by_a_handle_at(obj, rest, elbow, in_edit_mode=True)
+    assert moved[elbow] == pytest.approx(0.3, abs=1e-3)
+    np.testing.assert_allclose(moved[:n_body], 0.0, atol=1e-4)
+
+
+def moved_by_a_handle_at(obj, rest, vertex, in_edit_mode):
+    """Add a handle at ``vertex`` (in Edit Mode with it alone selected, else at its place as
+    shown) and move it 0.3 along y: how far each vertex moved in the plane (v,)."""
+    if in_edit_mode:
+        checks.select_only(obj)
+        bpy.ops.object.mode_set(mode="EDIT")
+        bpy.ops.mesh.select_all(action="DESELECT")
+        bpy.ops.object.mode_set(mode="OBJECT")
+        obj.data.vertices[vertex].select = True
+        bpy.ops.object.mode_set(mode="EDIT")
+        assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+        bpy.ops.object.mode_set(mode="OBJECT")
+    else:
+        checks.add_handle(obj, tuple(checks.evaluated_vertices(obj)[vertex]))
     obj.shapedeform.handles[-1].object.location.y += 0.3
     bpy.context.view_layer.update()
     assert obj.shapedeform.status == ""
-    moved = np.linalg.norm((checks.evaluated_mesh_points(obj) - rest)[:, :2], axis=1)
-    assert moved[elbow] == pytest.approx(0.3, abs=1e-3)
+    return np.linalg.norm((checks.evaluated_mesh_points(obj) - rest)[:, :2], axis=1)
+
+
+def arm_vertex_on_a_body_vertex(rest, n_body):
+    """The puppet's arm vertex at (1.5, 0.5), where a body vertex lies too."""
+    shared = np.flatnonzero(np.all(np.isclose(rest[:, :2], [1.5, 0.5]), axis=1))
+    assert len(shared) == 2 and shared[0] < n_body <= shared[1]
+    return int(shared[1])
+
+
+def test_a_handle_at_a_selected_arm_vertex_on_a_body_vertex_moves_the_arm_only(addon):
+    """Edit Mode, the puppet at rest, the arm vertex selected that lies exactly on a body
+    vertex: the handle holds the arm, the selected vertex's own island. Its region stayed on the
+    piece of the graph point nearest its centre, a tie the body's point won (the lower index):
+    the arm vertex did not move and the body moved 0.31."""
+    obj, n_body = puppet()
+    rest = checks.mesh_points(obj).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, (0.0, 0.5, 0.0))
+    checks.add_handle(obj, (3.0, 0.5, 0.0))
+    arm = arm_vertex_on_a_body_vertex(rest, n_body)
+    moved = moved_by_a_handle_at(obj, rest, arm, in_edit_mode=True)
+    assert moved[arm] == pytest.approx(0.3, abs=1e-3)
+    np.testing.assert_allclose(moved[:n_body], 0.0, atol=1e-4)
+
+
+def test_a_handle_added_where_the_arm_is_in_front_of_the_body_moves_the_arm_only(addon):
+    """Object Mode, an overlap pin on the hand puts the arm in front of the body: a handle
+    added at an arm vertex as shown, where it lies on a body vertex, holds the arm (placing it
+    found the arm's triangle; its region then went to the nearest graph point's piece, a tie
+    the body's won)."""
+    obj, n_body = puppet()
+    rest = checks.mesh_points(obj).copy()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, (0.0, 0.5, 0.0))
+    checks.add_handle(obj, (3.0, 0.5, 0.0))
+    assert bpy.ops.shapedeform.add_handle(location=(2.7, 0.5, 0.0), kind="OVERLAP") == {"FINISHED"}
+    obj.shapedeform.handles[-1].object.shapedeform.extent = 1.0
+    bpy.context.view_layer.update()
+    shown = checks.evaluated_vertices(obj)
+    assert shown[n_body:, 2].min() > shown[:n_body, 2].max()  # the arm in front
+    arm = arm_vertex_on_a_body_vertex(rest, n_body)
+    moved = moved_by_a_handle_at(obj, rest, arm, in_edit_mode=False)
+    assert moved[arm] == pytest.approx(0.3, abs=1e-3)
     np.testing.assert_allclose(moved[:n_body], 0.0, atol=1e-4)
 
 

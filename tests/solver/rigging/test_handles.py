@@ -64,17 +64,31 @@ def test_select_region_respects_radius_minimum_and_taken():
         select_region(points, [0, 0], 1.0, taken=np.ones(32, bool))
 
 
+def grid(nx, ny, width, height, x0, y0, first=0):
+    """A grid of ``nx`` by ``ny`` squares, each cut in two: points (p, 2) rounded to 1e-12 (so
+    grids share places exactly), triangles (t, 3) numbered from ``first``."""
+    x, y = np.meshgrid(np.linspace(x0, x0 + width, nx + 1), np.linspace(y0, y0 + height, ny + 1))
+    corner = (np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)).ravel() + first
+    a, b, c, d = corner, corner + 1, corner + nx + 2, corner + nx + 1
+    triangles = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    return np.round(np.column_stack([x.ravel(), y.ravel()]), 12), triangles
+
+
+def puppet():
+    """A body (2 x 1) and an arm lying over it to x = 3, some of its points on the body's:
+    points (n, 2), triangles, each point's piece (0: body, 1: arm)."""
+    (body, body_triangles), (arm, arm_triangles) = grid(8, 4, 2.0, 1.0, 0.0, 0.0), \
+        grid(6, 2, 1.8, 0.4, 1.2, 0.3, first=45)
+    return (np.concatenate([body, arm]), np.concatenate([body_triangles, arm_triangles]),
+            np.repeat([0, 1], [len(body), len(arm)]))
+
+
 def test_a_region_stays_on_the_piece_of_the_point_nearest_its_centre():
     """Two pieces lying over one another (a puppet's arm over its body): a region centred on
     the arm takes none of the body's points, however large its radius, and when the arm's
     points are all taken it says so rather than taking the body's."""
-    def grid(nx, ny, width, height, x0, y0):
-        x, y = np.meshgrid(np.linspace(x0, x0 + width, nx + 1), np.linspace(y0, y0 + height, ny + 1))
-        return np.column_stack([x.ravel(), y.ravel()])
-
-    body, arm = grid(8, 4, 2.0, 1.0, 0.0, 0.0), grid(6, 2, 1.8, 0.4, 1.2, 0.3)
-    points = np.concatenate([body, arm])
-    pieces = np.repeat([0, 1], [len(body), len(arm)])
+    points, _, pieces = puppet()
+    body, arm = points[pieces == 0], points[pieces == 1]
     elbow = len(body) + 2  # at (1.8, 0.3), 0.07 from the body's point (1.75, 0.25)
     assert np.any(pieces[select_region(points, points[elbow], 0.2)] == 0)  # without pieces: both
     for centre in points[[elbow, len(body), -1]]:
@@ -85,6 +99,44 @@ def test_a_region_stays_on_the_piece_of_the_point_nearest_its_centre():
     assert len(select_region(points, points[elbow], 10.0, pieces=pieces)) == len(arm)
     with pytest.raises(ValueError, match="every point of this piece of the shape already belongs"):
         select_region(points, points[elbow], 0.2, taken=pieces == 1, pieces=pieces)
+
+
+def test_a_region_stays_on_the_piece_it_is_given_where_pieces_share_a_place():
+    """An arm point lying exactly on a body point: the nearest point is a tie, which the body's
+    (the lower index) won, so a handle at the arm's point took the body. Given the arm's piece,
+    the region is the arm's, nearest first."""
+    points, _, pieces = puppet()
+    shared = np.flatnonzero(np.all(points == [1.5, 0.5], axis=1))
+    assert pieces[shared].tolist() == [0, 1]
+    assert np.all(pieces[select_region(points, points[shared[1]], 0.2, pieces=pieces)] == 0)
+    for radius in (0.0, 0.2, 10.0):
+        region = select_region(points, points[shared[1]], radius, pieces=pieces, piece=1)
+        assert region[0] == shared[1] and np.all(pieces[region] == 1), radius
+    region = select_region(points, points[shared[1]], 0.0, minimum=1, pieces=pieces, piece=0)
+    assert region.tolist() == [shared[0]]
+
+
+def test_place_gives_the_triangle_of_the_layer_in_front():
+    """Over the overlap of two pieces, the handle lies on the triangle of the layer in front
+    (lifted highest; a location on the plane is under both), whose piece it is on; placed on
+    the rest shape or off the shape, or without heights, no triangle is known."""
+    from solver.rigging.handles import place
+
+    points, triangles, pieces = puppet()
+    plane = fit_plane(np.column_stack([points, np.zeros(len(points))]))
+    flat = plane.to_2d(np.column_stack([points, np.zeros(len(points))]))
+    shared = np.flatnonzero(np.all(points == [1.5, 0.5], axis=1))
+    location = [1.5, 0.5, 0.0]
+    for front in (0, 1):
+        heights = np.where(pieces == front, 0.02, 0.01)
+        _, centre, triangle = place(plane, np.eye(4), location, flat, flat, triangles, posed_heights=heights)
+        assert pieces[triangles[triangle]].tolist() == [front] * 3
+        np.testing.assert_allclose(centre, flat[shared[0]], atol=1e-12)
+        region = select_region(flat, centre, 0.2, pieces=pieces, piece=pieces[triangles[triangle, 0]])
+        assert region[0] == shared[front]
+    assert place(plane, np.eye(4), location, flat, flat, triangles, on_rest=True, posed_heights=heights)[2] is None
+    assert place(plane, np.eye(4), [5.0, 0.5, 0.0], flat, flat, triangles, posed_heights=heights)[2] is None
+    assert place(plane, np.eye(4), location, flat, flat, triangles)[2] is None
 
 
 @pytest.mark.parametrize("scale, offset", [(1.0, 0.0), (0.1, 0.0), (1.0, 1e3), (7.3, -40.0)])
@@ -118,10 +170,10 @@ def test_place_finds_the_rest_point_under_a_posed_location_and_back():
     plane = fit_plane(np.column_stack([rest, np.zeros(len(rest))]))
     world = np.eye(4)
     location = np.array([0.6, -0.2, 0.0])
-    point, centre = place(plane, world, location, graph.points, posed, graph.triangles)
+    point, centre, _ = place(plane, world, location, graph.points, posed, graph.triangles)
     np.testing.assert_allclose(plane.to_3d(point[None])[0], location, atol=1e-12)
     np.testing.assert_allclose(plane.to_3d(centre[None])[0], location - [0.5, -0.25, 0.0], atol=1e-9)
-    point, centre = place(plane, world, location, graph.points, posed, graph.triangles, on_rest=True)
+    point, centre, _ = place(plane, world, location, graph.points, posed, graph.triangles, on_rest=True)
     np.testing.assert_allclose(plane.to_3d(point[None])[0], location + [0.5, -0.25, 0.0], atol=1e-9)
     with pytest.raises(ValueError, match="scaled to zero"):
         place(plane, np.diag([0.0, 1.0, 1.0, 1.0]), location, graph.points, posed, graph.triangles)
