@@ -36,18 +36,14 @@ def type_name(obj):
     return (items[obj.type].name if obj.type in items else obj.type.replace("_", " ")).lower()
 
 
-# The object type each kind of rig was made on.
-_KIND_TYPES = {"MESH": "MESH", "IMAGE": "MESH", "CURVE": "CURVE", "GREASEPENCIL": "GREASEPENCIL", "TEXT": "FONT"}
-
-
 def module_for(obj):
     """The source module of an object (bound or not); RigError for kinds we cannot rig.
 
-    A bound object is what it was bound as (an image plane stays one after its quad became a
-    cut-out), unless it has since been converted to another type (a text to a curve)."""
-    kind = obj.shapedeform.kind if obj.shapedeform.is_bound else ""
-    if _KIND_TYPES.get(kind) != obj.type:
-        kind = kind_of(obj)
+    A bound mesh is what it was bound as (an image plane stays one after its quad became a
+    cut-out, which no longer reads as an image plane); anything else is what its type says now
+    (a text converted to a curve is a curve)."""
+    stored = obj.shapedeform.kind if obj.shapedeform.is_bound else ""
+    kind = stored if stored in {"MESH", "IMAGE"} and obj.type == "MESH" else kind_of(obj)
     return {"MESH": mesh, "IMAGE": image_plane, "CURVE": curve, "GREASEPENCIL": grease_pencil, "TEXT": text}[kind]
 
 

@@ -19,6 +19,7 @@ import numpy as np
 from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
+from ...solver.wording import by_count
 from .. import compat
 from ..errors import RigError
 from .prepared import Prepared
@@ -180,9 +181,10 @@ def _hidden_layers_advice(layers, settings):
     hidden = [layer.name for layer in layers if layer.hide] if not settings.layers.strip() else []
     if not hidden:
         return ""
-    return (f"the hidden {'layer' if len(hidden) == 1 else 'layers'} {', '.join(map(repr, hidden))} "
-            f"{'is' if len(hidden) == 1 else 'are'} part of the shape: name the layers to rig in Layers to leave "
-            f"{'it' if len(hidden) == 1 else 'them'} out")
+    count = len(hidden)
+    return (f"the hidden {by_count(count, 'layer', 'layers')} {', '.join(map(repr, hidden))} "
+            f"{by_count(count, 'is', 'are')} part of the shape: name the layers to rig in Layers to leave "
+            f"{by_count(count, 'it', 'them')} out")
 
 
 def _transformed_layers_advice(obj, layers):
@@ -192,7 +194,7 @@ def _transformed_layers_advice(obj, layers):
     moved = [layer.name for layer in layers if not np.allclose(_layer_to_object(obj, layer), np.eye(4), atol=1e-6)]
     if not moved:
         return ""
-    return (f"{', '.join(map(repr, moved))} {'is' if len(moved) == 1 else 'are'} moved by a layer transform or "
+    return (f"{', '.join(map(repr, moved))} {by_count(len(moved), 'is', 'are')} moved by a layer transform or "
             "parent: the rig works where the strokes lie without it, so put handles there (or apply the layer "
             "transform, or clear the parent, and bind again)")
 

@@ -44,7 +44,7 @@ OWN_GRAPH_MIN_ANGLE = np.radians(5.0)
 # Unless its faces overlap (a cut-out puppet's pieces): only the mesh itself keeps them apart.
 
 # Places closer than this fraction of the mesh's size are one place: faces' edges lying on one
-# another are joined (_welded); a gap so narrow between faces is no hole (_outline_graph).
+# another are joined (_welded); a speck so small between faces is no hole (_outline_graph).
 COINCIDENT = 1e-6
 
 
@@ -174,7 +174,7 @@ def _outline_graph(flat, tris, loops, density):
             pass
     faces = shapely.union_all(shapely.polygons(flat[tris]))
     gap = COINCIDENT * float(np.linalg.norm(np.ptp(flat, axis=0)))
-    # Faces meeting edge to edge leave slits of rounding between them (1e-11 across) in the union.
+    # Faces meeting edge to edge leave specks of rounding between them (1e-11 across) in the union.
     rings = [ring for island in geometry_rings(faces) for ring in island if np.ptp(ring, axis=0).max() > gap]
     return outline_graph(rings, density)
 

@@ -5,8 +5,8 @@ The text stays text (its body, font and spacing editable): binding reads the gly
 as Blender makes them for Object > Convert > Curve and builds the graph from them as for a
 curve (:func:`.curve.prepare_splines`). The text reaches the Shape Deform modifier as its
 tessellated mesh, which the modifier maps like any other points. Text typed after binding is
-mapped by the part of the rest shape it lies on or nearest to; Bind again to rig the new
-glyphs themselves. Nothing of the text is written, so nothing needs giving back.
+mapped by the part of the rest shape it lies on or nearest to; Unbind and Bind again to rig
+the new glyphs themselves. Nothing of the text is written, so nothing needs giving back.
 """
 
 import bpy
