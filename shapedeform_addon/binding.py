@@ -4,7 +4,8 @@
 Binding computes everything first (so a refusal changes nothing), then adds the cage, the
 handle collection and the Shape Deform modifier; the object's own shape is left as it is (an
 image plane's quad is swapped for a cut-out of its picture, kept and given back on unbind; a
-mesh in several islands gets its vertices' islands, removed on unbind).
+mesh in several islands gets its vertices' islands, removed on unbind). Unbinding releases the
+duplicates that follow the rig first.
 """
 
 import bpy
@@ -90,10 +91,12 @@ def bind(obj):
 def unbind(obj):
     """Remove the rig: modifier, cage, bake, handles; the object's data is as it was.
 
-    A follower (a duplicate of a rig's owner) gives up only its modifier and copied settings
-    (an image plane gets its quad back); the owner's rig is untouched. A rig made by an older
-    version, which wrote poses into the object's data, gets its rest shape back from what that
-    version saved.
+    The duplicates following the rig stop following it first, as each would on its own. A
+    follower (a duplicate of a rig's owner) gives up only its modifier and copied settings
+    (an image plane gets its quad back); the owner's rig is untouched. What Bind changed on data
+    that several objects share is given back by the last rig of it to go. A rig made by an
+    older version, which wrote poses into the object's data, gets its rest shape back from what
+    that version saved.
 
     Returns
     -------
@@ -110,21 +113,23 @@ def unbind(obj):
         raise RigError(f"'{obj.name}' is not bound")
     rig_format.require_local(obj, "unbind it")
     # Only a rig made by an older version has rest points to give back. A modern rig without a
-    # cage (a duplicate whose rig's owner was unbound, or a cage deleted by hand) never wrote
-    # the object's data: there is nothing to restore.
+    # cage (a duplicate whose rig's owner an earlier version unbound, or a cage deleted by hand)
+    # never wrote the object's data: there is nothing to restore.
     legacy = rig_format.is_legacy(obj)
     if rig_format.is_follower(obj):
         return handles.release_follower(obj)
     source = sources.module_for(obj)
+    # Followers first: released, they no longer count as rigs of data they share with it.
+    lost = handles.release_followers(obj)
     if settings.cage is None:
-        lost = (source.restore_legacy(obj) if legacy else []) + source.unbind(obj)
+        lost += (source.restore_legacy(obj) if legacy else []) + source.unbind(obj)
     else:
         bake.clear(obj)
-        lost = source.unbind(obj)  # while the cage is there: it tells what transform was applied
+        lost += source.unbind(obj)  # while the cage is there: it tells what transform was applied
         cage = settings.cage
         mesh = cage.data
-        for follower_cage in handles.follower_cages(obj):  # duplicates that follow it stop
-            bpy.data.objects.remove(follower_cage)
+        for orphan in handles.follower_cages(obj):  # of deleted duplicates (removed when the file is saved)
+            bpy.data.objects.remove(orphan)
         bpy.data.objects.remove(cage)
         if mesh.users == 0:
             bpy.data.meshes.remove(mesh)

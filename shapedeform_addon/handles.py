@@ -14,10 +14,10 @@ from mathutils import Matrix
 from ..solver.rigging.handles import (MIN_REGION_POINTS, distance_off, frame_2d, handle_matrix, place,
                                       region_offsets, select_region)
 from ..solver.rigging.plane import affine_inverse
-from . import nodes, rig_format
+from . import nodes, rig_format, sources
 from . import rig as rigs
 from .errors import NoPointsLeft, RigError
-from .sources import curve, image_plane, mesh as mesh_source
+from .sources import image_plane
 
 
 FOLLOW = "Shape Deform"  # the constraint by which a handle follows a curve with path animation
@@ -470,27 +470,29 @@ def keep_in_collection(obj):
     return bool(strays)
 
 
+def followers(obj):
+    """The duplicates that follow owner ``obj``'s rig (:func:`follow`)."""
+    return [o for o in bpy.data.objects if rig_format.is_follower(o) and o.shapedeform.cage.shapedeform.rig == obj]
+
+
 def release_follower(obj):
     """Make a follower a plain object: its modifiers, its own cage and its copy of the rig's
-    settings go; an image plane gets its quad back, and a mesh of its own (a copy) loses its
-    vertices' islands, as its owner's do on unbind.
+    settings go, and its source gives back what Bind changed on its data (an image plane's
+    quad, a copied mesh's islands), unless the data is shared with a rig that stays.
 
     Returns
     -------
     list of str
-        What could not be given back, as phrases for a message (see ``image_plane.unbind``).
+        What could not be given back, as phrases for a message (see ``sources``).
     """
     settings = obj.shapedeform
-    quad = settings.original_data
     # While its cage and modifier are there: they tell what transform was applied, and whether
     # it was converted (its pose its own then, kept).
-    lost = image_plane.unbind(obj)
-    if quad is not None and quad.users == 0:  # the quad copy made for it (own_quad), not given back
-        bpy.data.meshes.remove(quad)
-    if obj.type == "CURVE":  # a copy of a curve whose Path Animation Bind turned off
-        curve.give_back_path_animation(obj)
-    if obj.type == "MESH":
-        mesh_source.forget_islands(obj)
+    try:
+        source = sources.module_for(obj)
+    except RigError:  # converted (Keep Original) to a type no rig is made on: new data, none of Bind's
+        source = None
+    lost = source.unbind(obj) if source is not None else []
     for modifier in rig_format.modifiers_of(obj):
         obj.modifiers.remove(modifier)
     if is_own_cage(obj, settings.cage):  # its own (follow), sharing the rig's mesh
@@ -499,6 +501,15 @@ def release_follower(obj):
     settings.handle_collection = None
     rig_format.forget(obj)
     rig_format.keep_handles_evaluated(obj)  # unbound now: its driver goes
+    return lost
+
+
+def release_followers(obj):
+    """Release every duplicate that follows owner ``obj``'s rig (:func:`release_follower`), as
+    the rig goes; what could not be given back, as phrases naming the duplicate."""
+    lost = []
+    for follower in followers(obj):
+        lost += [f"on '{follower.name}', {phrase}" for phrase in release_follower(follower)]
     return lost
 
 

@@ -47,7 +47,7 @@ class SHAPEDEFORM_OT_bind(bpy.types.Operator):
 
 
 class SHAPEDEFORM_OT_unbind(bpy.types.Operator):
-    """Remove the rig (modifier, cage, handles and bake); a duplicate that follows another object's rig only stops following it"""
+    """Remove the rig (modifier, cage, handles and bake; its duplicates stop following it); a duplicate that follows another object's rig only stops following it"""
 
     bl_idname = "shapedeform.unbind"
     bl_label = "Unbind"

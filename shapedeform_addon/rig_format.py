@@ -4,7 +4,7 @@
 A rig never changes the shape of the object it deforms (an image plane's quad is swapped for a
 cut-out mesh the rig makes, and given back on unbind; a mesh that is its own graph in several
 islands gets its vertices' islands, the hidden point attribute ``nodes.ISLAND``, removed on
-unbind). What it keeps:
+unbind by the last rig of the mesh: :func:`other_rigged_users`). What it keeps:
 
 On the bound object (the rig's *owner*), ``obj.shapedeform``:
     ``is_bound``, ``kind``, the settings (:mod:`.properties`), ``cage``, ``handles`` (each item:
@@ -20,7 +20,8 @@ On the bound object (the rig's *owner*), ``obj.shapedeform``:
     plane ``cutout_points``, the cut-out's vertices as bind made them (unbind tells from them
     whether the cut-out was edited).
 On a curve's data, ``shapedeform_path_off``: Bind turned its Path Animation off (nothing rode
-    the path, and the rig's children would have); Unbind turns it on again.
+    the path, and the rig's children would have; :func:`turn_path_off`); Unbind turns it on
+    again (:func:`turn_path_back_on`).
 The cage, a mesh object parented to the owner (or, on a curve whose Path Animation stayed on,
     copying its transform: :func:`follows_by_constraint`) and hidden:
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
@@ -38,7 +39,8 @@ Every object the rig deforms (the owner, and duplicates of it):
 
 A duplicate of the owner (Shift+D, Alt+D) copies its settings and modifier: it *follows* the
 owner's rig (the same handles; a cage object of its own, in no collection, parented to it and
-sharing the rig's cage mesh: :func:`.handles.follow`) and is never posed on its own.
+sharing the rig's cage mesh: :func:`.handles.follow`) and is never posed on its own. Unbinding
+the owner releases it first (:func:`.handles.release_followers`).
 """
 
 import bpy
@@ -124,6 +126,7 @@ def forget(obj):
     settings.kind = ""
     settings.status = ""
     settings.cage = None
+    settings.original_data = None  # an image plane's quad, when it was converted to another type
 
 
 # -- handles ----------------------------------------------------------------------------------
@@ -259,9 +262,23 @@ def make_cage(obj, plane, graph, collection, islands=None):
     return cage
 
 
+def turn_path_off(curve):
+    """Turn the Path Animation of ``curve`` (curve data) off for a rig, marking that Bind did."""
+    curve.use_path = False
+    curve[PATH_TURNED_OFF] = True
+
+
+def turn_path_back_on(curve):
+    """Turn the Path Animation of ``curve`` (curve data) on again where :func:`turn_path_off`
+    turned it off, and drop the mark."""
+    if curve.pop(PATH_TURNED_OFF, False):
+        curve.use_path = True
+
+
 def follows_by_constraint(obj):
-    """Whether the rig of owner ``obj`` follows it by constraints (a curve bound with Path
-    Animation on) rather than as its children: its cage tells, as it was made at Bind."""
+    """Whether the rig of ``obj`` (its owner, or a follower's own cage) follows it by
+    constraints (a curve bound with Path Animation on) rather than as its children: its cage
+    tells, as it was made at Bind."""
     cage = obj.shapedeform.cage
     return cage is not None and cage.parent != obj
 
@@ -423,6 +440,18 @@ def is_follower(obj):
     """``obj`` is a duplicate of a rig's owner: it shows that rig's pose, it has no rig of its own."""
     settings = obj.shapedeform
     return settings.is_bound and settings.cage is not None and settings.cage.shapedeform.rig not in (None, obj.original)
+
+
+def other_rigged_users(obj):
+    """The other objects with ``obj``'s data that a rig deforms: owners, and followers of a rig.
+
+    What Bind changed on the data (a mesh's islands, a curve's Path Animation, the attribute of
+    a drawing's rigged layers) serves them too: the last of them to be unbound gives it back.
+    Unbinding an owner releases its followers first, so they no longer count then.
+    """
+    data = obj.data
+    return [other for other in bpy.data.objects
+            if other.data == data and other != obj.original and (is_owner(other) or is_follower(other))]
 
 
 def is_legacy(obj):

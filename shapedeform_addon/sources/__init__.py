@@ -7,8 +7,11 @@ Each source module offers the same functions:
     Read the rest geometry, find its plane and build the graph, changing nothing; raise
     :class:`RigError` with a message for the user when the object cannot be rigged.
 ``unbind(obj) -> list of str``
-    Give back what binding changed (an image plane's quad); returns what it could not, as
-    phrases for a message.
+    Give back what binding changed on the object's data (an image plane's quad, a mesh's
+    islands, a curve's Path Animation, the attribute of a drawing's rigged layers), for a rig's
+    owner and for a duplicate that stops following a rig; what another rig of shared data still
+    uses stays (``rig_format.other_rigged_users``). Called while the rig's cage and modifier are
+    there. Returns what it could not give back, as phrases for a message.
 ``restore_legacy(obj) -> list of str``
     For a rig made by an older version, which wrote poses into the object's data: write the
     rest points it saved back exactly and delete them. Never fails for missing data, so such a

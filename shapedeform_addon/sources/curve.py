@@ -14,9 +14,10 @@ Path Animation (on by default for Blender's Add > Curve objects) carries a curve
 along its path, so a child would depend on the curve's geometry, which the rig makes. Only
 children parented to the object ride the path (and a Guide force field on it needs it; Follow
 Path, Clamp To, the Curve modifier and text on a curve have Blender compute the path anyway), so
-Bind turns it off when nothing uses it, marking the data (``rig_format.PATH_TURNED_OFF``), and
-Unbind turns it on again; the handles and cage are then the curve's children. Where something
-uses it, they follow the curve by constraints instead.
+Bind turns it off when nothing uses it, marking the data (``rig_format.turn_path_off``), and
+Unbind turns it on again once no rig made as the children of an object with this data is left;
+the handles and cage are then the curve's children. Where something uses it, they follow the
+curve by constraints instead.
 
 ``sd_rest`` (an ID property of the curve data) is where an older version kept the rest points
 while it wrote poses into the curve; :func:`restore_legacy` gives them back.
@@ -29,10 +30,9 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.outline import refine_level, sample_bezier, with_area
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
-from .. import compat
+from .. import compat, rig_format
 from ..errors import RigError
 from ..nodes import REFINE_INPUT, REFINE_MOST
-from ..rig_format import PATH_TURNED_OFF, follows_by_constraint
 from .mesh import edges, positions
 from .prepared import Prepared
 
@@ -89,7 +89,7 @@ def prepare(obj, settings):
             prepared.advice = (f"Path Animation stays on ({'; '.join(users)}), so the handles follow the curve by "
                                "constraints: move the curve without its handles (moved with it, they move twice)")
         else:
-            prepared.commit = _turn_path_off
+            prepared.commit = lambda o: rig_format.turn_path_off(o.data)
             prepared.advice = "turned Path Animation off, as nothing rides the curve's path (Unbind turns it on again)"
     return prepared
 
@@ -126,24 +126,6 @@ def _animated(block, data_path):
     played += [(strip.action, strip.action_slot) for track in animation.nla_tracks for strip in track.strips]
     bags = [compat.channelbag(action, slot) for action, slot in played if action is not None and slot is not None]
     return any(bag is not None and bag.fcurves.find(data_path) is not None for bag in bags)
-
-
-def _turn_path_off(obj):
-    obj.data.use_path = False
-    obj.data[PATH_TURNED_OFF] = True
-
-
-def give_back_path_animation(obj):
-    """Turn the Path Animation of ``obj``'s curve data on again where Bind turned it off, unless
-    another rig bound as the children of an object with this data still needs it off."""
-    data = obj.data
-    if not data.get(PATH_TURNED_OFF):
-        return
-    if any(o != obj and o.data == data and o.shapedeform.cage is not None and not follows_by_constraint(o)
-           for o in bpy.data.objects):
-        return
-    data.use_path = True
-    del data[PATH_TURNED_OFF]
 
 
 def prepare_splines(obj, curve, settings):
@@ -184,8 +166,13 @@ def _fill_refinement(obj, plane, graph):
 
 
 def unbind(obj):
-    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`)."""
-    give_back_path_animation(obj)
+    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`).
+
+    Path Animation comes back on where Bind turned it off, unless another rig made as the
+    children of an object with this data (not following it by constraints) still needs it off.
+    """
+    if not any(not rig_format.follows_by_constraint(other) for other in rig_format.other_rigged_users(obj)):
+        rig_format.turn_path_back_on(obj.data)
     return []
 
 

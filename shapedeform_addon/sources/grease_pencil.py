@@ -20,7 +20,7 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from ...solver.wording import by_count
-from .. import compat
+from .. import compat, rig_format
 from ..errors import RigError
 from .prepared import Prepared
 from ..nodes import ORDER_INPUT, RIGGED
@@ -215,12 +215,20 @@ def _layer_to_object(obj, layer):
 
 
 def unbind(obj):
-    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`)."""
-    name = obj.shapedeform.get(RIGGED_KEY, RIGGED)  # rigs bound before the key was kept used RIGGED
+    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`).
+
+    The attribute marking the rigged layers goes unless another rig of this data names it too
+    (a linked duplicate, following the rig or given a rig of its own with its handles)."""
+    name = _rigged_attribute(obj)
     attribute = obj.data.attributes.get(name) if name else None
-    if attribute is not None:
+    if attribute is not None and name not in map(_rigged_attribute, rig_format.other_rigged_users(obj)):
         obj.data.attributes.remove(attribute)
     return []
+
+
+def _rigged_attribute(obj):
+    """The name of the attribute marking the layers ``obj``'s rig deforms ("" for all of them)."""
+    return obj.shapedeform.get(RIGGED_KEY, RIGGED)  # rigs bound before the key was kept used RIGGED
 
 
 def restore_legacy(obj):

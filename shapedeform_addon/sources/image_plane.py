@@ -320,8 +320,10 @@ def unbind(obj):
         # mesh's would be (the status bar said so); the quad is not given back over it.
         obj.shapedeform.pop(CUTOUT_KEY, None)
         obj.shapedeform.pop(CUTOUT_ATTRIBUTES, None)
-        obj.shapedeform.original_data.pop(QUAD_STAMP, None)
+        original.pop(QUAD_STAMP, None)
         obj.shapedeform.original_data = None
+        if original.users == 0:  # not given back, and no other plane shows or keeps it
+            bpy.data.meshes.remove(original)
         return []
     applied = rig_format.rig_to_object(obj)
     cutout = obj.data

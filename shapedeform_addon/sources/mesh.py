@@ -12,7 +12,6 @@ become; unbind removes it.
 mesh; :func:`restore_legacy` gives them back when such a rig is unbound.
 """
 
-import bpy
 import numpy as np
 import shapely
 from scipy.sparse import coo_matrix
@@ -202,21 +201,15 @@ def _faces_overlap(flat, tris):
 
 
 def unbind(obj):
-    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`)."""
-    forget_islands(obj)
-    return []
+    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`).
 
-
-def forget_islands(obj):
-    """Remove the vertices' islands (:data:`ISLAND`) from ``obj``'s mesh unless another bound
-    object shares the mesh (a linked duplicate following the rig, another rig of the data): the
-    last of them to be unbound removes it."""
+    The vertices' islands (:data:`ISLAND`) go from the mesh unless another rig still deforms it
+    (a linked duplicate following the rig, another rig of the data): the last of them removes
+    them."""
     attribute = obj.data.attributes.get(ISLAND)
-    if attribute is None:
-        return
-    if any(other.data == obj.data and other != obj and other.shapedeform.is_bound for other in bpy.data.objects):
-        return
-    obj.data.attributes.remove(attribute)
+    if attribute is not None and not rig_format.other_rigged_users(obj):
+        obj.data.attributes.remove(attribute)
+    return []
 
 
 def restore_legacy(obj):

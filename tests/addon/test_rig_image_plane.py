@@ -335,7 +335,7 @@ def test_a_pose_made_the_planes_own_stays_on_unbind(addon, tmp_path, capsys, how
 @pytest.mark.parametrize("how", ["with handles", "alone", "linked"])
 def test_a_duplicate_gets_a_rest_quad_of_its_own(addon, tmp_path, how):
     """Shift+D of a bound plane, with its handles (a rig of its own) or alone (it follows the
-    rig, and is unbound after the original): each plane gets its own quad back, so scaling the
+    rig, and is released when the original is unbound): each plane gets its own quad back, so scaling the
     copy's leaves the original's as imported (both shared one quad: the original's corners came
     back at +-1.333 x +-1 instead of +-0.667 x +-0.5). Alt+D shares the cut-out, and so the quad."""
     from mathutils import Matrix
@@ -350,9 +350,10 @@ def test_a_duplicate_gets_a_rest_quad_of_its_own(addon, tmp_path, how):
     assert bpy.ops.object.duplicate(linked=how == "linked") == {"FINISHED"}
     copy = bpy.context.active_object
     assert copy != obj
-    for first in ((obj, copy) if how == "alone" else (copy, obj)):
-        checks.select_only(first)
+    for plane in ((obj,) if how == "alone" else (copy, obj)):  # alone, the copy stops following with its rig
+        checks.select_only(plane)
         assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert not copy.shapedeform.is_bound
     if how == "linked":
         assert copy.data == obj.data and len(bpy.data.meshes) == 1
         return
@@ -385,9 +386,10 @@ def test_a_copy_of_a_follower_gets_a_rest_quad_of_its_own(addon, tmp_path, how):
     planes = [o for o in bpy.data.objects if o.type == "MESH" and o.shapedeform.is_bound]
     assert len(planes) == (3 if how == "follower alone" else 4)
     is_owner = addon.shapedeform_addon.rig_format.is_owner
-    for plane in sorted(planes, key=lambda plane: not is_owner(plane)):  # followers last: each gets its quad back
+    for plane in [plane for plane in planes if is_owner(plane)]:  # their followers are released with them
         checks.select_only(plane)
         assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert not any(plane.shapedeform.is_bound for plane in planes)
     for factor, plane in enumerate(planes, start=2):
         plane.data.transform(Matrix.Scale(factor, 4))
     for factor, plane in enumerate(planes, start=2):

@@ -346,15 +346,9 @@ class Machine:
         settings = obj.shapedeform
         bound = settings.is_bound
         was_owner = self.addon.rig_format.is_owner(obj)
-        cutout = quad = None
-        if settings.kind == "IMAGE" and was_owner:
-            cutout = world_of(obj, data_points("MESH", obj.data))
-            # Its quad comes back where the picture is: changed as Apply (while bound) changed
-            # the object's space, which is where the cage's transform went.
-            evaluated = settings.cage.evaluated_get(self.depsgraph())
-            to_object = np.linalg.solve(np.array(obj.matrix_world), np.array(evaluated.matrix_world))
-            quad = data_points("MESH", settings.original_data).astype(np.float64) @ to_object[:3, :3].T \
-                + to_object[:3, 3]
+        # Unbinding an owner releases the duplicates that follow its rig too.
+        released = [obj] + (self.addon.handles.followers(obj) if was_owner else [])
+        quads = {o.name: self.quad_given_back(o) for o in released if o.shapedeform.kind == "IMAGE"}
         if not self.call(bpy.ops.shapedeform.unbind, "never" if bound else "must"):
             return
         self.new_version()
@@ -364,22 +358,17 @@ class Machine:
             raise StepFailed(f"unbind warned that it lost something:\n{out.out}{out.err}")
         if was_owner:
             self.model.bakes.pop(obj.name, None)
-        assert not settings.is_bound and not self.addon.rig_format.modifiers_of(obj), "still rigged"
-        assert settings.cage is None and len(settings.handles) == 0, "rig data left behind"
-        shown = evaluated_points(obj, self.depsgraph())
-        own = shown_data_points(obj)
-        if shown.tobytes() != own.tobytes():
-            raise StepFailed(f"after unbind '{obj.name}' does not show its own data exactly "
-                             f"(off by {np.abs(shown - own).max() if shown.shape == own.shape else shown.shape})")
-        self.checked["unbind exact"] += 1
-        if quad is not None:
-            self.expect_rest[("MESH", obj.data.name)] = quad
+        for o in released:
+            self.check_unbound(o)
+        for name, (cutout, quad) in quads.items():
+            self.expect_rest[("MESH", bpy.data.objects[name].data.name)] = quad
         quad = self.model.quads.pop(obj.name, None)
         if quad is not None and was_owner:
             # Its own quad, or after Apply while bound a changed copy when others share it.
             if obj.data.name != quad and not (len(obj.data.polygons) == 1 and quad in bpy.data.meshes
                                               and bpy.data.meshes[quad].users > 0):
                 raise StepFailed(f"'{obj.name}' did not get its quad '{quad}' back (has '{obj.data.name}')")
+            cutout = quads[obj.name][0]
             corners = world_of(obj, data_points("MESH", obj.data))
             lo, hi = corners.min(axis=0), corners.max(axis=0)
             margin = 1e-4 * size_of(corners)
@@ -387,6 +376,31 @@ class Machine:
                 raise StepFailed(f"'{obj.name}': the quad given back is not where its picture was "
                                  f"(the cut-out spans {cutout.min(axis=0)}..{cutout.max(axis=0)}, "
                                  f"the quad {lo}..{hi})")
+
+    def quad_given_back(self, obj):
+        """(the cut-out's points in the world, the quad's points predicted in ``obj``'s space once
+        Unbind gives it back) of a bound image plane."""
+        settings = obj.shapedeform
+        cutout = world_of(obj, data_points("MESH", obj.data))
+        # Its quad comes back where the picture is: changed as Apply (while bound) changed
+        # the object's space, which is where the cage's transform went.
+        evaluated = settings.cage.evaluated_get(self.depsgraph())
+        to_object = np.linalg.solve(np.array(obj.matrix_world), np.array(evaluated.matrix_world))
+        quad = data_points("MESH", settings.original_data).astype(np.float64) @ to_object[:3, :3].T \
+            + to_object[:3, 3]
+        return cutout, quad
+
+    def check_unbound(self, obj):
+        """``obj`` is unbound, nothing of its rig left on it, and shows its own data exactly."""
+        settings = obj.shapedeform
+        assert not settings.is_bound and not self.addon.rig_format.modifiers_of(obj), f"'{obj.name}' still rigged"
+        assert settings.cage is None and len(settings.handles) == 0, f"rig data left behind on '{obj.name}'"
+        shown = evaluated_points(obj, self.depsgraph())
+        own = shown_data_points(obj)
+        if shown.tobytes() != own.tobytes():
+            raise StepFailed(f"after unbind '{obj.name}' does not show its own data exactly "
+                             f"(off by {np.abs(shown - own).max() if shown.shape == own.shape else shown.shape})")
+        self.checked["unbind exact"] += 1
 
     def pick_bound(self, share=0.85):
         """A bound shape mostly (``share`` of the time, when there is one), else any."""

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Unbinding gives the object back whatever state its rig is in: baked (issue 15, defect 8),
-duplicated (defects 1 and 9), or with a grease-pencil keyframe deleted (defect 10)."""
+duplicated (defects 1 and 9), or with a grease-pencil keyframe deleted (defect 10); and what
+Bind changed in data that duplicates share goes with the last rig of it."""
 
 import bpy
 import numpy as np
@@ -10,7 +11,7 @@ import rig_checks as checks
 from test_bake import rig
 from test_rig_curve import curve_points, text_curve
 from test_rig_grease_pencil import drawing_points
-from test_rig_mesh import grid, rig_with_two_handles
+from test_rig_mesh import grid, puppet, rig_with_two_handles
 
 
 def baked_curve_channels(obj):
@@ -462,15 +463,18 @@ def test_an_image_plane_unbound_after_apply_gets_its_quad_back_where_its_picture
 
 @pytest.mark.parametrize("linked", [False, True], ids=["Shift+D", "Alt+D"])
 def test_a_duplicate_whose_rig_was_unbound_unbinds_without_a_false_warning(addon, capfd, linked):
-    """The owner unbound first, its duplicate has no cage left: unbinding it must not go the way
-    of an older version's rig and warn that its rest shape is lost (it never was written).
-    Found by the state-machine test, seeds 21 and 22 with 1,500 steps."""
+    """A duplicate left bound with no cage, as unbinding its owner left it before it released
+    its duplicates (files saved then still hold such): unbinding it must not go the way of an
+    older version's rig and warn that its rest shape is lost (it never was written). Found by
+    the state-machine test, seeds 21 and 22 with 1,500 steps."""
     original, left, right = rig_with_two_handles()
     rest = checks.mesh_points(original).copy()
     copy = _duplicate(original, linked)
     right.location.y += 0.3
     bpy.context.view_layer.update()
+    bpy.data.objects.remove(copy.shapedeform.cage)  # as unbinding the owner left it
     unbind(original)
+    assert copy.shapedeform.is_bound and copy.shapedeform.cage is None
     assert checks.evaluated_mesh_points(copy).tobytes() == rest.tobytes()  # no cage: it shows its data
     bpy.context.view_layer.objects.active = copy
     with pytest.raises(RuntimeError, match="its rig was removed"):
@@ -497,3 +501,133 @@ def test_unbinding_an_image_plane_says_its_cut_outs_shape_keys_go(addon, tmp_pat
     unbind(obj)
     out = capfd.readouterr()
     assert "shape keys of its cut-out" in out.out + out.err
+
+
+# -- what Bind leaves in data that duplicates share -------------------------------------------
+
+class Rigged:
+    """A shape of one kind bound with two handles, and what its Bind leaves in its data.
+
+    ``marks(data)`` names what Bind changed on the data (a curve's Path Animation turned off and
+    its mark, a puppet's hidden islands, the attribute of a drawing's rigged layers); ``shown``
+    and ``own`` read an object's evaluated points and its data's."""
+
+    def __init__(self, kind):
+        self.kind = kind
+        if kind == "curve":
+            bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)  # Path Animation on
+            self.obj = bpy.context.active_object
+            ends = [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]
+        elif kind == "puppet":
+            self.obj, _ = puppet()  # its arm's island overlaps its body's
+            ends = [0.0, 0.5, 0.0], [3.0, 0.5, 0.0]
+        else:
+            bpy.ops.object.grease_pencil_add(type="MONKEY")
+            self.obj = bpy.context.active_object
+            self.obj.shapedeform.layers = "Lines"
+            lines = checks.drawing_points(self.obj.data.layers["Lines"].current_frame().drawing)
+            ends = lines[np.argmin(lines[:, 2])], lines[np.argmax(lines[:, 2])]
+        assert not self.marks(self.obj.data)
+        self.handles = checks.bind_with_handles(self.obj, *ends)
+        assert self.marks(self.obj.data)
+
+    def marks(self, data):
+        if self.kind == "curve":
+            return (set() if data.use_path else {"Path Animation off"}) | ({"shapedeform_path_off"} & set(data.keys()))
+        return {a.name for a in data.attributes if a.name.startswith((".sd_island", "sd_rigged"))}
+
+    def shown(self, obj):
+        if self.kind == "curve":
+            return checks.evaluated_curve_points(obj)
+        if self.kind == "puppet":
+            return checks.evaluated_mesh_points(obj)
+        return checks.evaluated_drawing_points(obj)
+
+    def own(self, obj):
+        if self.kind == "curve":
+            return np.concatenate(curve_points(obj))
+        if self.kind == "puppet":
+            return checks.mesh_points(obj)
+        return drawing_points(obj, evaluated=False)
+
+    def assert_released(self, obj):
+        """``obj`` is a plain object again: unbound, nothing of a rig on it, showing its data."""
+        settings = obj.shapedeform
+        assert not settings.is_bound and settings.cage is None and not obj.modifiers, f"'{obj.name}' is still rigged"
+        assert obj.animation_data is None  # nor the driver that kept the rig's handles evaluated
+        assert self.shown(obj).tobytes() == self.own(obj).tobytes()
+
+    def assert_given_back(self, obj):
+        """:meth:`assert_released`, and its data as before Bind."""
+        self.assert_released(obj)
+        assert not self.marks(obj.data), f"Bind's {self.marks(obj.data)} left on '{obj.name}''s data"
+
+
+KINDS = ["curve", "puppet", "grease pencil"]
+
+
+@pytest.mark.parametrize("linked", [False, True], ids=["Shift+D", "Alt+D"])
+@pytest.mark.parametrize("kind", KINDS)
+def test_unbinding_the_original_releases_its_duplicates_and_gives_their_data_back(addon, kind, linked, quiet):
+    """Unbind on the original of duplicates that follow its rig: they stop following, as Stop
+    Following does, and every data block is as before Bind. (Each duplicate was left bound
+    with no cage; an Alt+D curve's Path Animation stayed off and a linked puppet's islands on
+    its mesh, as the duplicate still counted as a rig of the data; a Shift+D copy kept them in
+    its own data.)"""
+    rigged = Rigged(kind)
+    original = rigged.obj
+    copy = _duplicate(original, linked)
+    copy.location.x += 3.0
+    rigged.handles[1].location.x += 0.3
+    bpy.context.view_layer.update()
+    assert np.abs(rigged.shown(copy) - rigged.own(copy)).max() > 0.1  # it follows the rig
+
+    unbind(original)
+    for obj in (original, copy):
+        rigged.assert_given_back(obj)
+    assert {o.name for o in bpy.data.objects} == {original.name, copy.name}
+
+
+@pytest.mark.parametrize("linked", [False, True], ids=["Shift+D", "Alt+D"])
+@pytest.mark.parametrize("kind", KINDS)
+def test_stop_following_gives_back_what_bind_left_in_the_duplicates_own_data_only(addon, kind, linked, quiet):
+    """Stop Following (Unbind on a duplicate) takes from a copy's own data what Bind left in
+    it (a Shift+D drawing kept its rigged layers' attribute), and leaves data the original's
+    rig still deforms as it is."""
+    rigged = Rigged(kind)
+    original = rigged.obj
+    copy = _duplicate(original, linked)
+    marks = rigged.marks(original.data)
+    unbind(copy)
+    if linked:
+        rigged.assert_released(copy)
+    else:
+        rigged.assert_given_back(copy)
+    assert rigged.marks(original.data) == marks
+    unbind(original)
+    rigged.assert_given_back(original)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_unbinding_a_linked_duplicates_own_rig_leaves_the_originals_in_their_data(addon, kind, quiet):
+    """Alt+D with the handles gives the copy a rig of its own on the original's data: unbinding
+    it leaves what the original's rig needs there (the drawing lost the attribute of its rigged
+    layers, and the original's rig then deformed every layer)."""
+    rigged = Rigged(kind)
+    original = rigged.obj
+    checks.select_only(original)
+    for handle in rigged.handles:
+        handle.select_set(True)
+    assert bpy.ops.object.duplicate(linked=True) == {"FINISHED"}
+    copy = bpy.context.active_object
+    assert addon.shapedeform_addon.rig_format.is_owner(copy) and copy.data == original.data
+    marks = rigged.marks(original.data)
+    unbind(copy)
+    assert rigged.marks(original.data) == marks
+    if kind == "grease pencil":
+        fills = checks.drawing_points(original.data.layers["Fills"].current_frame().drawing).copy()
+        rigged.handles[1].location.x += 0.3
+        bpy.context.view_layer.update()
+        assert checks.evaluated_drawing_points(original, "Fills").tobytes() == fills.tobytes()
+    unbind(original)
+    rigged.assert_given_back(original)
