@@ -5,8 +5,10 @@ Runs under the dev venv's PyPI ``bpy`` 5.0 or later (the drawings are made throu
 ``bpy.data.grease_pencils``, which 4.5 still gives the legacy type). Each design of the extension is built from its checkout
 and installed like a user, in a Python process of its own with its own temporary
 ``BLENDER_USER_RESOURCES`` (every version has the id ``shapedeform``, so two cannot share one
-process). On four objects -- Blender's grease-pencil monkey, a 1,200-point and a 5,000-point
-grease-pencil drawing, and a 50,000-vertex mesh -- it binds, adds two handles at the same places,
+process). On five objects -- Blender's grease-pencil monkey, a 1,200-point and a 5,000-point
+grease-pencil drawing, a 50,000-vertex mesh, and a cut-out puppet (a body and an arm lying over
+it, one mesh in two islands that is its own graph, so its rig keeps its vertices' islands) --
+it binds, adds two handles at the same places,
 drags one the same way, and reports medians of:
 
 - ``update``: ``handle.location`` changed, then ``view_layer.update()``: the add-on's depsgraph
@@ -55,7 +57,8 @@ MEASURES = (("update", "handle move -> evaluated"), ("solve", "solve"), ("map", 
             ("bake_keys", "bake: writing keys, per frame"))
 
 # Objects by name, in table order; the worker builds them (see ``_objects``).
-OBJECT_NAMES = ("grease-pencil monkey", "1,200-point drawing", "5,000-point drawing", "50,000-vertex mesh")
+OBJECT_NAMES = ("grease-pencil monkey", "1,200-point drawing", "5,000-point drawing", "50,000-vertex mesh",
+                "puppet in 2 islands")
 
 
 # -- the worker: one design, in its own process -----------------------------------------------
@@ -128,9 +131,30 @@ def _dense_mesh():
     return bpy.context.active_object
 
 
+def _puppet(columns=40):
+    """A body (2 x 1, ``columns`` x ``columns / 2`` quads) and an arm lying over it to x = 3,
+    as one mesh: Bind makes it its own graph and gives its vertices their islands."""
+    import bpy
+    import numpy as np
+
+    verts, faces = [], []
+    for nx, ny, width, height, x0, y0 in ((columns, columns // 2, 2.0, 1.0, 0.0, 0.0),
+                                          (columns, columns // 4, 1.8, 0.4, 1.2, 0.3)):
+        x, y = np.meshgrid(np.linspace(x0, x0 + width, nx + 1), np.linspace(y0, y0 + height, ny + 1))
+        corner = len(verts) + np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)
+        faces += np.stack([corner, corner + 1, corner + nx + 2, corner + nx + 1], axis=-1).reshape(-1, 4).tolist()
+        verts += np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1).tolist()
+    mesh = bpy.data.meshes.new("Puppet")
+    mesh.from_pydata(verts, [], faces)
+    obj = bpy.data.objects.new("Puppet", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    obj.select_set(True)
+    return obj
+
+
 def _objects():
     return dict(zip(OBJECT_NAMES, (_monkey, lambda: _gp_drawing(1200, 40), lambda: _gp_drawing(5000, 50),
-                                   _dense_mesh)))
+                                   _dense_mesh, _puppet)))
 
 
 def _evaluated_points(obj):
