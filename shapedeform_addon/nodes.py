@@ -38,7 +38,9 @@ part misses takes the nearest triangle of that island (Sample Nearest Surface by
 of no island (a rig bound by an older version, a vertex added since, a mesh joined in) is looked
 up by its place (in an island rig, by the nearest triangle of any island); one that is the
 cage's point of its own index, at its rest place (such a rig unedited), takes that point's
-displacement. The group's output has no islands: they are the rig's, not the shape's.
+displacement. A rig whose cage has no islands (every other rig, and one bound by an older
+version) takes a branch of the group that never reads them, so it pays nothing for them. The
+group's output has no islands, cage or none: they are the rig's, not the shape's.
 
 Grease pencil's ``Stroke Order`` draws the strokes lying on a folded-over part after the others
 in their layer: a ray from behind through the posed cage finds the lowest layer under each
@@ -58,7 +60,7 @@ import bpy
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 16
+VERSION = 17
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -205,15 +207,16 @@ def _build(group):
     curves, left, right, point = _map_bezier_handles(b, cage, geometry, selection)
     moved = _set_bezier_handles(b, cage, _map_points(b, cage, curves, selection), selection, left, right, point)
     ordered = _stroke_order(b, cage, moved, given.outputs[ORDER_INPUT], selection)
-    # The islands are the rig's: a modifier applied, or a mesh exported with modifiers, has none.
-    ordered = b.node("GeometryNodeRemoveAttribute", {"Geometry": ordered, "Name": ISLAND}).outputs[0]
     # No cage (deleted by hand, or no faces): the geometry passes unchanged.
     faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.geometry}, component="MESH")
     has_cage = b.node("FunctionNodeCompare", {"A": faces.outputs["Face Count"], "B": 0},
                       data_type="INT", operation="GREATER_THAN").outputs[0]
     switch = b.node("GeometryNodeSwitch", {"Switch": has_cage, "False": given.outputs[0], "True": ordered},
                     input_type="GEOMETRY")
-    b.node("NodeGroupOutput", {0: switch.outputs[0]})
+    # The islands are the rig's: a modifier applied, or a mesh exported with modifiers, has none,
+    # with its cage or without.
+    output = b.node("GeometryNodeRemoveAttribute", {"Geometry": switch.outputs[0], "Name": ISLAND}).outputs[0]
+    b.node("NodeGroupOutput", {0: output})
 
 
 def _interface(group):
@@ -313,11 +316,15 @@ class _Cage:
     def _islands(self):
         """``island``: a point's island of the cage + 1 (:data:`ISLAND`), on the cage and on the
         deformed geometry alike; 0 where it is not one of the cage's (unknown, or the cage has
-        none). ``tile``: where the island's UVs lie (:meth:`uv`)."""
+        none). ``tile``: where the island's UVs lie (:meth:`uv`). ``has_islands``: whether the
+        cage has any (a boolean single value; none where Bind found one island, or an older
+        version bound the rig)."""
         b = self.b
         given = b.node("GeometryNodeInputNamedAttribute", {"Name": ISLAND}, data_type="INT").outputs[0]
         count = b.node("GeometryNodeAttributeStatistic", {"Geometry": self.rest, "Attribute": given},
                        data_type="FLOAT", domain="POINT").outputs["Max"]
+        self.has_islands = b.node("FunctionNodeCompare", {"A": count, "B": 0.5}, data_type="FLOAT",
+                                  operation="GREATER_THAN").outputs[0]
         low = b.node("FunctionNodeCompare", {"A": given, "B": 1.0}, data_type="FLOAT",
                      operation="GREATER_EQUAL").outputs[0]
         high = b.node("FunctionNodeCompare", {"A": given, "B": count}, data_type="FLOAT",
@@ -339,12 +346,13 @@ class _Cage:
         """``point`` turned so that the rig's plane is XY."""
         return self.b.node("FunctionNodeRotateVector", [point, self._onto_plane]).outputs[0]
 
-    def uv(self, point):
-        """``point``'s place in the rest cage's bounding square, in the plane, moved to its
-        island's tile: the cage's UVs (a point of no known island: the unit square)."""
+    def uv(self, point, islands=False):
+        """``point``'s place in the rest cage's bounding square, in the plane: the cage's UVs;
+        with ``islands``, moved to its island's tile (a point of no known island: the unit
+        square)."""
         b = self.b
-        return b.math("ADD", b.math("DIVIDE", b.math("SUBTRACT", self.in_plane(point), self.corner), self.span),
-                      self.tile)
+        square = b.math("DIVIDE", b.math("SUBTRACT", self.in_plane(point), self.corner), self.span)
+        return b.math("ADD", square, self.tile) if islands else square
 
     def mapped(self, point, about=None, in_island=False):
         """``point`` (a field on the deformed geometry) through the map of the triangle nearest
@@ -424,16 +432,30 @@ def _map_points(b, cage, geometry, selection):
     """Every point moved: inside the cage (its island's part, where it has one) by its
     displacement sampled at the point's UV (see the module docstring), or where it is the cage's
     point of its own index with no island known (a mesh that is its own graph, bound by an
-    older version) by that point's; elsewhere through its nearest triangle's map (its island's)."""
+    older version) by that point's; elsewhere through its nearest triangle's map (its island's).
+
+    A cage without islands (nearly every rig) takes a branch that never reads them: a Switch
+    evaluates only the branch it passes on, and the islands' lookups, run on points of no island
+    too, made a 50,000-vertex mesh's evaluation a fifth to a third slower (docs/addon_speed.md)."""
+    by_place, by_island = (_mapped_points(b, cage, geometry, selection, islands) for islands in (False, True))
+    return b.node("GeometryNodeSwitch", {"Switch": cage.has_islands, "False": by_place, "True": by_island},
+                  input_type="GEOMETRY").outputs[0]
+
+
+def _mapped_points(b, cage, geometry, selection, islands):
+    """:func:`_map_points`'s geometry, the points' islands read with ``islands`` (else every
+    point is looked up by its place, or by its index where that is the cage's point)."""
     group, position = b.group, cage.position
     shift = b.math("SUBTRACT", cage.posed, position)
+    uv = cage.uv(position, islands)
     displacement = b.node("GeometryNodeSampleUVSurface",
-                          {"Mesh": cage.rest, "Value": shift, "UV Map": cage.uv(position), "Sample UV": cage.uv(position)},
-                          data_type="FLOAT_VECTOR")
-    known = b.node("FunctionNodeCompare", {"A": cage.island, "B": 0.5}, data_type="FLOAT",
-                   operation="GREATER_THAN").outputs[0]
+                          {"Mesh": cage.rest, "Value": shift, "UV Map": uv, "Sample UV": uv}, data_type="FLOAT_VECTOR")
     own = _OwnCagePoint(b, cage)
-    own_found = b.node("FunctionNodeBooleanMath", [own.found, known], operation="NIMPLY").outputs[0]
+    own_found = own.found
+    if islands:
+        known = b.node("FunctionNodeCompare", {"A": cage.island, "B": 0.5}, data_type="FLOAT",
+                       operation="GREATER_THAN").outputs[0]
+        own_found = b.node("FunctionNodeBooleanMath", [own.found, known], operation="NIMPLY").outputs[0]
     own_shift = b.node("GeometryNodeSampleIndex", {"Geometry": cage.rest, "Value": shift, "Index": own.index},
                        data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
     shifted = b.node("GeometryNodeSwitch", {"Switch": own_found, "False": displacement.outputs["Value"],
@@ -451,9 +473,14 @@ def _map_points(b, cage, geometry, selection):
     outside = b.node("FunctionNodeBooleanMath", [selection, inside], operation="NIMPLY").outputs[0]
     moved = b.node("GeometryNodeSetPosition",
                    {"Geometry": captured.outputs[0], "Selection": both, "Position": moved_inside}).outputs[0]
-    # Each search only where its points are: a Set Position's selection limits what it evaluates.
-    for in_island, operation in ((False, "NIMPLY"), (True, "AND")):
-        chosen = b.node("FunctionNodeBooleanMath", [outside, known], operation=operation).outputs[0]
+    searches = [(outside, False)]
+    if islands:
+        # Each search at its own points alone: a Set Position evaluates its position at the
+        # points it selects, but a search's structure (the nearest triangle's tree, one per
+        # island for the search by island) is built whenever its node runs, points or none.
+        searches = [(b.node("FunctionNodeBooleanMath", [outside, known], operation=operation).outputs[0], in_island)
+                    for in_island, operation in ((False, "NIMPLY"), (True, "AND"))]
+    for chosen, in_island in searches:
         moved = b.node("GeometryNodeSetPosition", {"Geometry": moved, "Selection": chosen,
                                                    "Position": cage.mapped(position, in_island=in_island)}).outputs[0]
     return moved

@@ -600,6 +600,24 @@ def test_a_puppet_bound_by_an_older_version_poses_as_it_did(addon):
     np.testing.assert_allclose(checks.evaluated_mesh_points(obj), posed, atol=1e-6)
 
 
+@pytest.mark.parametrize("cage", ["posed", "deleted by hand"])
+def test_applying_a_puppets_modifier_leaves_no_islands(addon, cage):
+    """The vertices' islands are the rig's: Apply gives a mesh without them, posed or, its
+    cage deleted by hand, as it was (the group passed that geometry through with them)."""
+    obj, _ = puppet()
+    rest = checks.mesh_points(obj).copy()
+    pose_puppet(obj)
+    island = addon.shapedeform_addon.nodes.ISLAND
+    assert island in obj.data.attributes
+    if cage == "deleted by hand":
+        bpy.data.objects.remove(obj.shapedeform.cage)
+        bpy.context.view_layer.update()
+        np.testing.assert_array_equal(checks.evaluated_mesh_points(obj), rest)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.object.modifier_apply(modifier=obj.modifiers[0].name) == {"FINISHED"}
+    assert island not in obj.data.attributes
+
+
 def test_pixels_touching_at_corners_are_rigged_by_their_outline(addon):
     """A sprite modelled pixel by pixel: squares that touch only at corners. The mesh cannot be
     its own graph (its boundary pinches there; the Mesh choice says so and what to do), and the
