@@ -4,12 +4,14 @@
 Binding computes everything first (so a refusal changes nothing), then adds the cage, the
 handle collection and the Shape Deform modifier; the object's own shape is left as it is (an
 image plane's quad is swapped for a cut-out of its picture, kept and given back on unbind; a
-mesh in several islands gets its vertices' islands, removed on unbind). Unbinding releases the
-duplicates that follow the rig first.
+mesh in several islands gets its vertices' islands, removed on unbind; a curve whose path
+nothing rides has its Path Animation turned off, turned on again on unbind). Unbinding releases
+the duplicates that follow the rig first.
 """
 
 import bpy
 
+from ..solver.wording import by_count
 from . import bake, handles, rig, rig_format, sources
 from .errors import RigError
 
@@ -65,7 +67,7 @@ def bind(obj):
     if adding:
         # The rig is built from the object's own data; the rig's modifier comes after these.
         notes.append(f"the rig was built without what {', '.join(map(repr, adding))} add"
-                     f"{'s' if len(adding) == 1 else ''}: their copies follow the nearest bound part; "
+                     f"{by_count(len(adding), 's', '')}: their copies follow the nearest bound part; "
                      "apply them before binding to rig the whole shape")
     prepared.advice = "; ".join(notes)
     prepared.commit(obj)

@@ -30,6 +30,7 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.outline import refine_level, sample_bezier, with_area
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
+from ...solver.wording import by_count
 from .. import compat, rig_format
 from ..errors import RigError
 from ..nodes import REFINE_INPUT, REFINE_MOST
@@ -108,7 +109,7 @@ def path_users(obj):
     riders = [child.name for o in sharing for child in o.children
               if child.parent_type == "OBJECT" and child.shapedeform.rig is None]
     guides = [o.name for o in sharing if o.field is not None and o.field.type == "GUIDE"]
-    found = [f"{', '.join(map(repr, riders))} {'rides' if len(riders) == 1 else 'ride'} the path"] if riders else []
+    found = [f"{', '.join(map(repr, riders))} {by_count(len(riders), 'rides', 'ride')} the path"] if riders else []
     found += [f"a Guide force field on {', '.join(map(repr, guides))}"] if guides else []
     found += ["the curve's Evaluation Time is animated"] if _animated(data, "eval_time") else []
     return found
