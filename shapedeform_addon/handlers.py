@@ -14,6 +14,7 @@ import bpy
 from bpy.app.handlers import persistent
 
 from . import handles, nodes, rig, rig_format
+from .sources import mesh
 
 # Writing geometry makes Blender evaluate again and call us back: ignore those calls.
 _busy = False
@@ -125,6 +126,9 @@ def on_depsgraph_update(scene, depsgraph):
         handles.settle_duplicate(obj)
         if obj.library is None and (obj.shapedeform.is_bound or rig_format.watches_handles(obj)):
             rig_format.keep_handles_evaluated(obj)  # a handle deleted, the animation data replaced
+        if (obj.type == "MESH" and obj.data.library is None and nodes.ISLAND in obj.data.attributes
+                and rig_format.owner_of(obj) is None):
+            mesh.forget_islands(obj)  # a rigged puppet joined into a mesh no rig deforms
         if rig_format.is_owner(obj) and update.is_updated_transform and obj.library is None:
             handles.keep_in_rig_space(obj)  # after Apply Transform or Set Origin
             handles.fit_pin_shapes(obj)  # its scale is its pins' too

@@ -201,15 +201,19 @@ def _faces_overlap(flat, tris):
 
 
 def unbind(obj):
-    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`).
+    """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`)."""
+    forget_islands(obj)
+    return []
 
-    The vertices' islands (:data:`ISLAND`) go from the mesh unless another rig still deforms it
-    (a linked duplicate following the rig, another rig of the data): the last of them removes
-    them."""
+
+def forget_islands(obj):
+    """Remove the vertices' islands (:data:`ISLAND`) from ``obj``'s mesh unless another rig still
+    deforms it (a linked duplicate following the rig, another rig of the data): the last of
+    them removes them. Also for a mesh no rig deforms that got them by Join (which merges
+    attributes)."""
     attribute = obj.data.attributes.get(ISLAND)
     if attribute is not None and not rig_format.other_rigged_users(obj):
         obj.data.attributes.remove(attribute)
-    return []
 
 
 def restore_legacy(obj):

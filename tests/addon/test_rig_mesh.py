@@ -618,6 +618,23 @@ def test_applying_a_puppets_modifier_leaves_no_islands(addon, cage):
     assert island not in obj.data.attributes
 
 
+def test_a_puppet_joined_into_a_plain_mesh_leaves_it_no_islands(addon):
+    """Ctrl+J of a posed puppet into a mesh no rig deforms: Join merges the meshes' attributes,
+    and the hidden islands stayed on a mesh nothing would ever unbind."""
+    obj, _ = puppet()
+    pose_puppet(obj)
+    plain = grid("Plain")
+    for other in bpy.context.selected_objects:
+        other.select_set(False)
+    obj.select_set(True)
+    plain.select_set(True)
+    bpy.context.view_layer.objects.active = plain
+    assert bpy.ops.object.join() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    assert not plain.shapedeform.is_bound
+    assert addon.shapedeform_addon.nodes.ISLAND not in plain.data.attributes
+
+
 def test_pixels_touching_at_corners_are_rigged_by_their_outline(addon):
     """A sprite modelled pixel by pixel: squares that touch only at corners. The mesh cannot be
     its own graph (its boundary pinches there; the Mesh choice says so and what to do), and the
