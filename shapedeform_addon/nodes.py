@@ -49,7 +49,8 @@ keeps the drawing's order).
 
 A missing cage (deleted by hand) leaves the geometry as it is. The ``Refine`` input (0 by
 default) subdivides a mesh's faces before mapping: a long thin face spanning a bent stretch
-otherwise keeps straight edges and can flip although the map under it does not fold.
+otherwise keeps straight edges and can flip although the map under it does not fold. It
+subdivides no further than leaves the mesh ``REFINE_BUDGET`` faces (what plays live).
 
 The group is built from Python (no asset file to keep in step) and rebuilt when an older
 extension's group is found (``VERSION``); the modifiers that use it keep their inputs.
@@ -57,10 +58,11 @@ extension's group is found (``VERSION``); the modifiers that use it keep their i
 
 import bpy
 
+from ..solver.rigging.outline import REFINE_BUDGET
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 17
+VERSION = 18
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -201,7 +203,8 @@ def _build(group):
     _interface(group)
     b = _Builder(group)
     given = b.node("NodeGroupInput")
-    geometry = b.node("GeometryNodeSubdivideMesh", {"Mesh": given.outputs[0], "Level": given.outputs[REFINE_INPUT]}).outputs[0]
+    geometry = b.node("GeometryNodeSubdivideMesh", {"Mesh": given.outputs[0],
+                                                     "Level": _refine_level(b, given)}).outputs[0]
     cage = _Cage(b, given.outputs[CAGE_INPUT])
     selection = _rigged_selection(b, given.outputs[RIGGED_INPUT])
     curves, left, right, point = _map_bezier_handles(b, cage, geometry, selection)
@@ -217,6 +220,18 @@ def _build(group):
     # with its cage or without.
     output = b.node("GeometryNodeRemoveAttribute", {"Geometry": switch.outputs[0], "Name": ISLAND}).outputs[0]
     b.node("NodeGroupOutput", {0: output})
+
+
+def _refine_level(b, given):
+    """The Refine input, lowered as far as keeps the subdivided mesh within ``REFINE_BUDGET``
+    faces (a text typed longer after Bind chose its Refine, a Refine raised on a dense mesh)."""
+    faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": given.outputs[0]}, component="MESH")
+    count = b.node("ShaderNodeMath", [faces.outputs["Face Count"], 1.0], operation="MAXIMUM").outputs[0]
+    share = b.node("ShaderNodeMath", [REFINE_BUDGET, count], operation="DIVIDE").outputs[0]
+    levels = b.node("ShaderNodeMath", [share, 4.0], operation="LOGARITHM").outputs[0]
+    affordable = b.node("ShaderNodeMath", [b.node("ShaderNodeMath", [levels], operation="FLOOR").outputs[0], 0.0],
+                        operation="MAXIMUM").outputs[0]
+    return b.node("ShaderNodeMath", [given.outputs[REFINE_INPUT], affordable], operation="MINIMUM").outputs[0]
 
 
 def _interface(group):

@@ -143,7 +143,8 @@ def test_a_letter_bends_with_its_rig(addon):
 
 def test_a_line_of_text_is_refined_within_its_budget(addon):
     """Two words (449 fill faces): their fill is cut too (it was left whole, as the cut was
-    capped by the cage's triangle count), but no finer than the budget that keeps it live."""
+    capped by the cage's triangle count), but no finer than the budget that keeps it live, also
+    when more is typed after Bind chose the cut."""
     obj = text("Hello world")
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert checks.refine(addon.shapedeform_addon, obj) >= 2
@@ -151,6 +152,14 @@ def test_a_line_of_text_is_refined_within_its_budget(addon):
     faces = len(evaluated.to_mesh().polygons)
     evaluated.to_mesh_clear()
     assert faces <= 50_000
+    # Typed longer afterwards (the Refine chosen for two words would cut a sentence's fill
+    # into 318,000 faces, a third of a second per update): still within the budget.
+    obj.data.body = "Hello world, how are you doing today?"
+    bpy.context.view_layer.update()
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    faces = len(evaluated.to_mesh().polygons)
+    evaluated.to_mesh_clear()
+    assert 12_500 < faces <= 50_000
 
 
 def test_add_handle_in_text_edit_mode_says_how(addon):
