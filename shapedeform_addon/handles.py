@@ -88,8 +88,8 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0):
     ``location`` (or, with ``on_rest``, that ``location`` is at on the unposed shape), on one
     piece of the graph (islands that overlap stay apart): ``island``'s, else the piece of the
     layer there nearest ``location``'s depth as shown (in front for a location under them
-    all), else, off the shape, the nearest point's (:func:`_piece`). Their offsets are taken from their
-    current (posed) positions, so adding a handle does not move the shape.
+    all), else, off the shape, the nearest point's (:func:`_piece`). Their offsets are taken
+    from their current (posed) positions, so adding a handle does not move the shape.
 
     A pin (``kind`` 'OVERLAP' or 'STARCH') pulls nothing: it is bound to the graph point under
     ``location`` and vertex-parented to that point of the cage, so it follows the shape.
