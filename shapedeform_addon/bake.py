@@ -70,10 +70,8 @@ def _remove_keys(cage):
     if key is None:
         return 0
     animation = key.animation_data
-    # Pushed down (or stashed), the bake's action is a strip's, no longer the active one; a
-    # meta strip holds strips of its own.
-    actions = [] if animation is None else [animation.action] + [
-        strip.action for track in animation.nla_tracks for strip in _strips(track.strips)]
+    # Pushed down (or stashed), the bake's action is a strip's, no longer the active one.
+    actions = [action for action, _ in compat.played_actions(animation)]
     removed = sum(1 for b in key.key_blocks if b.name.startswith(PREFIX))
     uid = key.session_uid
     cage.shape_key_clear()
@@ -100,13 +98,6 @@ def _show_live(cage, points):
     shown = rig_format.rest_of(cage) if points is None else np.ascontiguousarray(points, dtype=np.float32)
     key.reference_key.data.foreach_set("co", shown.ravel())
     cage.data.update()
-
-
-def _strips(strips):
-    """Every strip of ``strips``, those inside meta strips included."""
-    for strip in strips:
-        yield strip
-        yield from _strips(strip.strips)
 
 
 def _write_keys(cage, frames, captured, times):

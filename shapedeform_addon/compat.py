@@ -7,6 +7,8 @@ the rest of the add-on calls one name on every Blender. Nothing here is register
 - Keyframes live in an action's channelbag for a slot (Blender 4.4+). Blender 5.0 added
   ``bpy_extras.anim_utils.action_ensure_channelbag_for_slot``; 4.5 has only the getter, and
   the same is reached through the action's first layer and keyframe strip.
+- Which actions an ID plays: its active action and its NLA strips' (a meta strip holding strips
+  of its own), each with the slot it plays, as readers of keys need them on every version.
 - A Geometry Nodes modifier's inputs: ID properties of the modifier keyed by socket identifier
   up to 5.1; from 5.2 ``modifier.properties.inputs.<identifier>.value`` (the modifier takes no
   ID properties).
@@ -35,6 +37,23 @@ def ensure_channelbag(action, slot):
     layer = action.layers[0] if action.layers else action.layers.new("Layer")
     strip = layer.strips[0] if layer.strips else layer.strips.new(type="KEYFRAME")
     return strip.channelbag(slot, ensure=True)
+
+
+def played_actions(animation):
+    """The (action, slot) pairs ``animation`` (an ID's AnimData, or None) plays: its active
+    action's and every NLA strip's, those inside meta strips included; empty strips left out."""
+    if animation is None:
+        return []
+    played = [(animation.action, animation.action_slot)]
+    played += [(strip.action, strip.action_slot) for track in animation.nla_tracks for strip in _strips(track.strips)]
+    return [(action, slot) for action, slot in played if action is not None]
+
+
+def _strips(strips):
+    """Every strip of ``strips``, those inside meta strips included."""
+    for strip in strips:
+        yield strip
+        yield from _strips(strip.strips)
 
 
 def channelbag(action, slot):

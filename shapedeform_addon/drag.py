@@ -199,7 +199,7 @@ def _key_frames(obj):
     Blender tells a key on a frame)."""
     animation = obj.animation_data
     if animation is None or animation.action is None:
-        return []
+        return set()
     bag = compat.channelbag(animation.action, animation.action_slot)
     curves = [] if bag is None else bag.fcurves
     return {round(key.co[0], 2) for curve in curves for key in curve.keyframe_points}

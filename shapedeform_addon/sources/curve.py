@@ -116,16 +116,12 @@ def path_users(obj):
 
 
 def _animated(block, data_path):
-    """Whether ``block``'s (an ID's) property ``data_path`` is driven, or keyed in the action it
-    plays or in an action of its NLA strips."""
+    """Whether ``block``'s (an ID's) property ``data_path`` is driven, or keyed in an action it
+    plays (active, or in the NLA)."""
     animation = block.animation_data
-    if animation is None:
-        return False
-    if animation.drivers.find(data_path) is not None:
+    if animation is not None and animation.drivers.find(data_path) is not None:
         return True
-    played = [(animation.action, animation.action_slot)]
-    played += [(strip.action, strip.action_slot) for track in animation.nla_tracks for strip in track.strips]
-    bags = [compat.channelbag(action, slot) for action, slot in played if action is not None and slot is not None]
+    bags = [compat.channelbag(action, slot) for action, slot in compat.played_actions(animation) if slot is not None]
     return any(bag is not None and bag.fcurves.find(data_path) is not None for bag in bags)
 
 
