@@ -8,7 +8,8 @@ the rest of the add-on calls one name on every Blender. Nothing here is register
   ``bpy_extras.anim_utils.action_ensure_channelbag_for_slot``; 4.5 has only the getter, and
   the same is reached through the action's first layer and keyframe strip.
 - Which actions an ID plays: its active action and its NLA strips' (a meta strip holding strips
-  of its own), each with the slot it plays, as readers of keys need them on every version.
+  of its own), each with the slot it plays, as readers of keys need them on every version;
+  and so whether a property is keyed (or driven).
 - A Geometry Nodes modifier's inputs: ID properties of the modifier keyed by socket identifier
   up to 5.1; from 5.2 ``modifier.properties.inputs.<identifier>.value`` (the modifier takes no
   ID properties).
@@ -59,6 +60,16 @@ def _strips(strips):
 def channelbag(action, slot):
     """The channelbag of ``action`` for ``slot``, or None when it has none."""
     return anim_utils.action_get_channelbag_for_slot(action, slot)
+
+
+def is_animated(block, data_path):
+    """Whether ``block``'s (an ID's) property ``data_path`` is driven, or keyed in an action it
+    plays (active, or in the NLA)."""
+    animation = block.animation_data
+    if animation is not None and animation.drivers.find(data_path) is not None:
+        return True
+    bags = [channelbag(action, slot) for action, slot in played_actions(animation) if slot is not None]
+    return any(bag is not None and bag.fcurves.find(data_path) is not None for bag in bags)
 
 
 def modifier_input(modifier, identifier):

@@ -14,6 +14,7 @@ import bpy
 from bpy.app.handlers import persistent
 
 from . import handles, nodes, rig, rig_format
+from .errors import RigError
 from .sources import mesh
 
 # Writing geometry makes Blender evaluate again and call us back: ignore those calls.
@@ -135,15 +136,51 @@ def on_depsgraph_update(scene, depsgraph):
         if rig_format.is_owner(obj) and rig.stale(obj):  # a setting driven or keyed, edited
             moved[obj.name] = obj
         owner = handles.rig_of(obj)
-        if owner is None or obj.type != "EMPTY" or owner.name in moved:
+        if owner is None or obj.type != "EMPTY":
+            continue
+        is_pin = obj.shapedeform.pin_kind != "POSITION"
+        if is_pin and update.is_updated_transform and handles.left_its_point(obj) and _reseat_pins(owner):
+            moved[owner.name] = owner
+        if owner.name in moved:
             continue  # posed once whatever else of it changed
         # Pins ride on the cage (vertex parents), so their moves come from the pose, and posing
         # again for them would never settle: only their amounts (driven, or a key edited at
         # this frame) pose again.
-        is_pin = obj.shapedeform.pin_kind != "POSITION"
         if rig.stale(owner) if is_pin else update.is_updated_transform:
             moved[owner.name] = owner
     _pose(list(moved.values()), depsgraph)
+
+
+def _reseat_pins(owner):
+    """Bind the pins of ``owner``'s rig that were moved by hand to the points they were left
+    on, once the move is over: while a transform (G, a gizmo) still moves one, a timer waits for
+    it to end. Whether any pin was bound to another point now."""
+    if _transforming():
+        if not bpy.app.timers.is_registered(_reseat_dropped_pins):
+            bpy.app.timers.register(_reseat_dropped_pins, first_interval=REFINE_AFTER)
+        return False
+    try:
+        return handles.reseat_pins(owner)
+    except RigError:  # posing the rig says why it cannot be built
+        return False
+
+
+def _reseat_dropped_pins():
+    """Re-seat the scene's pins moved by hand once no transform moves them (a timer); the
+    writes call :func:`on_depsgraph_update`, which poses their rigs."""
+    if _transforming():
+        return REFINE_AFTER
+    scene = bpy.context.scene
+    for owner in rig_format.owners(scene) if scene is not None else ():
+        _reseat_pins(owner)
+    return None
+
+
+def _transforming():
+    """Whether a modal transform (G, R, S, a gizmo's drag) runs in some window."""
+    windows = bpy.context.window_manager.windows if bpy.context.window_manager is not None else ()
+    return any(op.bl_idname.startswith(("TRANSFORM_OT", "transform.")) for window in windows
+               for op in window.modal_operators)
 
 
 @persistent
@@ -251,7 +288,7 @@ def _sync_once():
 
 
 def unregister():
-    for timer in (refine, _sync_once):
+    for timer in (refine, _sync_once, _reseat_dropped_pins):
         if bpy.app.timers.is_registered(timer):
             bpy.app.timers.unregister(timer)
     for name, function in _HANDLERS:

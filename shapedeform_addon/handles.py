@@ -14,7 +14,7 @@ from mathutils import Matrix
 from ..solver.rigging.handles import (MIN_REGION_POINTS, distance_off, frame_2d, handle_matrix, place,
                                       region_offsets, select_region)
 from ..solver.rigging.plane import affine_inverse
-from . import nodes, rig_format, sources
+from . import compat, nodes, rig_format, sources
 from . import rig as rigs
 from .errors import NoPointsLeft, RigError
 from .sources import image_plane
@@ -117,17 +117,12 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0):
     rig = rigs.get(obj)
     world = rig_format.rig_space(obj)
     graph = rig.graph
-    try:
-        point, rest_centre, triangle = place(rig.plane, world, location, graph.points, rig.posed, graph.triangles,
-                                             on_rest, posed_heights=rig.plane.heights(rig.shown))
-    except ValueError as err:
-        raise RigError(f"'{obj.name}': {err}") from None
+    point, rest_centre, triangle = _place(obj, rig, location, on_rest)
     pieces, piece = _piece(obj, graph, triangle, island)
     if kind != "POSITION":
         if notes is not None and distance_off(rig.posed, graph.triangles, point) > 1e-4 * graph.size:
             notes.append(f"the {kind.lower()} pin was added off the shape: it is on the shape's nearest point")
-        return _add_pin(obj, rig, int(select_region(graph.points, rest_centre, 0.0, minimum=1, pieces=pieces,
-                                                    piece=piece)[0]), kind)
+        return _add_pin(obj, rig, _pin_point(graph, rest_centre, pieces, piece), kind)
     taken = np.zeros(graph.n, dtype=bool)
     taken[rig.indices] = True
     try:
@@ -154,6 +149,21 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0):
     rig_format.keep_handles_evaluated(obj)
     rigs.invalidate(obj)
     return empty
+
+
+def _place(obj, rig, location, on_rest=False):
+    """:func:`~solver.rigging.handles.place` for owner ``obj``'s rig at world ``location``."""
+    graph = rig.graph
+    try:
+        return place(rig.plane, rig_format.rig_space(obj), location, graph.points, rig.posed, graph.triangles,
+                     on_rest, posed_heights=rig.plane.heights(rig.shown))
+    except ValueError as err:
+        raise RigError(f"'{obj.name}': {err}") from None
+
+
+def _pin_point(graph, rest_centre, pieces, piece):
+    """The graph point a pin rides on: the one of ``piece`` nearest ``rest_centre`` (2,)."""
+    return int(select_region(graph.points, rest_centre, 0.0, minimum=1, pieces=pieces, piece=piece)[0])
 
 
 def _piece(obj, graph, triangle, island):
@@ -263,6 +273,41 @@ def _add_pin(obj, rig, point, kind):
     fit_pin_shapes(obj, rig)
     rigs.invalidate(obj)
     return empty
+
+
+def left_its_point(pin):
+    """Whether ``pin`` (an overlap or starch pin's Empty) was moved off the cage point it rides
+    on by hand: its own location is no longer zero, and no key or driver sets it."""
+    return (pin.shapedeform.pin_kind != "POSITION" and pin.parent_type == "VERTEX" and any(pin.location)
+            and pin.library is None and not compat.is_animated(pin, "location"))
+
+
+def reseat_pins(obj):
+    """Put each pin of owner ``obj``'s rig that was moved by hand (:func:`left_its_point`) on
+    the shape's point under where it was left, as After Effects moves a pin: the point it is
+    bound to, its vertex parent and its location are set anew (the layer nearest its depth
+    where the pose overlaps itself; the nearest point of the shape when left off it).
+
+    Returns
+    -------
+    bool
+        Whether any pin moved to another point (the rig is then rebuilt on next use).
+    """
+    moved = [item for item in obj.shapedeform.handles
+             if rig_format.present(item.object) and rig_format.PIN_POINT in item and left_its_point(item.object)]
+    if not moved or rig_format.local_refusal(obj, "move pins"):
+        return False
+    rig = rigs.get(obj)
+    for item in moved:
+        pin = item.object
+        _, rest_centre, triangle = _place(obj, rig, pin.matrix_world.translation)
+        pieces, piece = _piece(obj, rig.graph, triangle, 0)
+        point = _pin_point(rig.graph, rest_centre, pieces, piece)
+        item[rig_format.PIN_POINT] = point
+        pin.parent_vertices = (point, 0, 0)
+        pin.location = (0.0, 0.0, 0.0)
+    rigs.invalidate(obj)
+    return True
 
 
 def fit_pin_shapes(obj, rig=None):

@@ -111,18 +111,8 @@ def path_users(obj):
     guides = [o.name for o in sharing if o.field is not None and o.field.type == "GUIDE"]
     found = [f"{', '.join(map(repr, riders))} {by_count(len(riders), 'rides', 'ride')} the path"] if riders else []
     found += [f"a Guide force field on {', '.join(map(repr, guides))}"] if guides else []
-    found += ["the curve's Evaluation Time is animated"] if _animated(data, "eval_time") else []
+    found += ["the curve's Evaluation Time is animated"] if compat.is_animated(data, "eval_time") else []
     return found
-
-
-def _animated(block, data_path):
-    """Whether ``block``'s (an ID's) property ``data_path`` is driven, or keyed in an action it
-    plays (active, or in the NLA)."""
-    animation = block.animation_data
-    if animation is not None and animation.drivers.find(data_path) is not None:
-        return True
-    bags = [compat.channelbag(action, slot) for action, slot in compat.played_actions(animation) if slot is not None]
-    return any(bag is not None and bag.fcurves.find(data_path) is not None for bag in bags)
 
 
 def prepare_splines(obj, curve, settings):

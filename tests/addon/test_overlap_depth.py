@@ -691,3 +691,47 @@ def test_an_image_plane_folded_over_itself_renders_one_layer_in_front(addon, tmp
     texel = (np.array(at(1, 1)) - np.array(at(0, 0)))[0]
     arm_share, torso_share = part_shares(obj, arm, camera, pixels, margin=3 * texel)
     assert arm_share >= 0.97, f"arm {arm_share:.3f}, torso {torso_share:.3f}"
+
+
+def test_a_pin_moved_by_hand_binds_to_the_point_it_is_left_on(addon):
+    """As After Effects moves a pin: an overlap pin on the torso, moved with its Empty onto the
+    hand where the hand lies over the torso, rides on the hand from then on and sends the hand
+    behind; the pose does not move. It used to stay bound to the torso's point, its Empty
+    floating off the shape by what it was moved."""
+    rig_format = addon.shapedeform_addon.rig_format
+    obj, arm = figure()
+    swing_arm_across(obj)
+    bpy.context.scene.frame_set(10)
+    rest, posed = checks.mesh_points(obj), checks.evaluated_mesh_points(obj)
+    hand = np.flatnonzero((rest[:, 0] > 0.8) & (np.abs(posed[:, 0]) < 0.2) & (np.abs(posed[:, 1]) < 0.9))
+    assert len(hand) >= 2, "the hand does not lie over the torso"
+    torso = np.flatnonzero(rest[:, 0] < 0.25)
+    checks.select_only(obj)
+    on_torso = posed[torso[np.argmin(np.linalg.norm(posed[torso, :2] - [0.0, -0.5], axis=1))]]
+    assert bpy.ops.shapedeform.add_handle(location=tuple(on_torso), kind="OVERLAP") == {"FINISHED"}
+    item = obj.shapedeform.handles[-1]
+    pin = item.object
+    pin.shapedeform.in_front = -1.0
+    bpy.context.view_layer.update()
+    assert rest[item[rig_format.PIN_POINT], 0] < 0.25  # on the torso
+    hand_heights = checks.evaluated_mesh_points(obj)[hand, 2]
+
+    target = posed[hand[0]]
+    # As G moves it: its location takes the move (the figure is not turned, scaled or moved).
+    pin.location = tuple(target - np.array(pin.matrix_world.translation))
+    bpy.context.view_layer.update()
+
+    point = item[rig_format.PIN_POINT]
+    assert rest[point, 0] > 0.8, f"the pin stayed on rest point {rest[point]}"
+    assert tuple(pin.parent_vertices)[0] == point and tuple(pin.location) == (0.0, 0.0, 0.0)
+    shown = checks.evaluated_mesh_points(obj)
+    np.testing.assert_allclose(np.array(pin.matrix_world.translation)[:2], shown[point, :2], atol=1e-5)
+    np.testing.assert_allclose(np.array(pin.matrix_world.translation)[:2], target[:2], atol=0.08)
+    np.testing.assert_allclose(shown[:, :2], posed[:, :2], atol=1e-6)  # a pin pulls nothing
+    below = shown[hand, 2] - hand_heights
+    assert np.all(below < -0.005), f"the hand did not go behind: its heights changed by {below}"
+    # A location keyed (or driven) is the animator's to set: the pin stays bound where it is.
+    pin.location = (0.1, 0.0, 0.0)
+    pin.keyframe_insert("location", frame=10)
+    bpy.context.scene.frame_set(10)
+    assert item[rig_format.PIN_POINT] == point and tuple(pin.location) == pytest.approx((0.1, 0.0, 0.0))
