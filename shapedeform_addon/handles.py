@@ -114,7 +114,7 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0):
     if not settings.is_bound:
         raise RigError(f"'{obj.name}' is not bound: bind it first")
     rig_format.require_local(obj, "add handles")
-    rig = rigs.get(obj)
+    rig = rigs.as_shown(obj)
     world = rig_format.rig_space(obj)
     graph = rig.graph
     point, rest_centre, triangle = _place(obj, rig, location, on_rest)
@@ -297,7 +297,7 @@ def reseat_pins(obj):
              if rig_format.present(item.object) and rig_format.PIN_POINT in item and left_its_point(item.object)]
     if not moved or rig_format.local_refusal(obj, "move pins"):
         return False
-    rig = rigs.get(obj)
+    rig = rigs.as_shown(obj)
     for item in moved:
         pin = item.object
         _, rest_centre, triangle = _place(obj, rig, pin.matrix_world.translation)

@@ -40,7 +40,7 @@ def drawing_data(obj):
     if obj is None or not obj.shapedeform.is_bound or not obj.shapedeform.show_overlay:
         return None
     try:
-        rig = rigs.get(obj)
+        rig = rigs.as_shown(obj)
     except RigError:
         return None
     points = transform_points(rig_format.rig_space(obj), rig.shown)

@@ -85,12 +85,16 @@ class Rig:
         # The pose shown (the cage's, as saved or last written): graph positions (n, 2) and the
         # cage's points (n, 3) in rig space, lifted where it overlaps itself; and whether it is
         # what a render gives (converged, or solved with the Render budget).
-        self.shown = rig_format.shown_pose(settings.cage).astype(np.float32)
+        self.follow_cage(settings.cage)
+        self.settled = True
+
+    def follow_cage(self, cage):
+        """Take the pose ``cage`` shows now (a bake's at this frame, or as saved) as the shown one."""
+        self.shown = rig_format.shown_pose(cage).astype(np.float32)
         self.posed = self.plane.to_2d(self.shown)
         if not np.all(np.isfinite(self.posed)):
             self.posed = self.graph.points.copy()
             self.shown = self.cage_points(self.posed)
-        self.settled = True
 
     def frames(self, obj, depsgraph=None):
         """Each handle's 2D frame in the shape's plane, (h, 3, 3), from evaluated transforms."""
@@ -212,6 +216,17 @@ def get(obj, depsgraph=None):
         _coarse_copies.kept = max(_coarse_copies.kept, len(_cache) + 1)
         rig = Rig(owner, depsgraph)
         _cache[owner.session_uid] = rig
+    return rig
+
+
+def as_shown(obj):
+    """:func:`get`, with the rig's ``shown`` and ``posed`` the pose on screen: a baked rig
+    plays its keys and is not posed, so its last solve (of another frame, or a bake's) is not
+    what the cage shows; what is drawn over it and handles added on it take the bake's."""
+    rig = get(obj)
+    owner = rig_format.owner_of(obj.original)
+    if rig_format.is_baked(owner):
+        rig.follow_cage(owner.shapedeform.cage)
     return rig
 
 

@@ -712,3 +712,30 @@ def test_unbinding_a_copy_of_a_baked_rig_leaves_a_file_that_saves(addon, tmp_pat
     assert all(k.user is not None for k in bpy.data.shape_keys)
     assert len({k.session_uid for k in bpy.data.shape_keys}) == len(keys) - 1
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))  # raised on 4.5 and 5.0
+
+
+def test_what_is_drawn_over_a_baked_rig_and_handles_added_to_it_take_the_bake_shown(addon):
+    """A baked rig plays its keys and is not posed: the graph drawn over it (Show Graph) stayed
+    at the pose the bake ended on (0.507 off the shape at frame 6), and a handle added at frame 6
+    took its offsets from that pose, so the shape jumped 0.40 once the bake was cleared."""
+    rig_format = addon.shapedeform_addon.rig_format
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    addon.shapedeform_addon.bake.bake_objects([obj], 1, 6)
+    obj.shapedeform.show_overlay = True
+    scene = bpy.context.scene
+    world = np.array(rig_format.rig_space(obj))
+    for frame in (1, 3, 6):
+        scene.frame_set(frame)
+        data = addon.shapedeform_addon.overlay.drawing_data(obj)
+        cage = rig_format.shown_pose(obj.shapedeform.cage) @ world[:3, :3].T + world[:3, 3]
+        edges = addon.shapedeform_addon.rig.get(obj).graph.edges.ravel()
+        np.testing.assert_allclose(data["edges"], cage[edges], atol=1e-4, err_msg=f"frame {frame}")
+
+    shown = checks.evaluated_mesh_points(obj).copy()
+    middle = int(np.argmin(np.linalg.norm(checks.mesh_points(obj)[:, :2] - [0.5, 0.0], axis=1)))
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, shown[middle])) == {"FINISHED"}
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+    scene.frame_set(6)
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), shown, atol=1e-3)
