@@ -15,7 +15,7 @@ import bpy
 import numpy as np
 from bpy_extras import view3d_utils
 
-from ..solver.rigging.drag import nearest, parent_offset, ray_plane, transform_points, world_plane
+from ..solver.rigging.drag import in_front, nearest, parent_offset, ray_plane, transform_points, world_plane
 from . import compat, handles, rig, rig_format
 from .errors import RigError, poll_reason
 
@@ -106,13 +106,13 @@ def begin(context, obj, ray, pin=False):
         raise RigError(f"The view looks at '{obj.name}' edge-on: turn the view to drag on its plane")
     settings = obj.shapedeform
     if pin:
-        current = rig.get(obj)
-        shape = transform_points(rig_format.rig_space(obj), current.shown)
-        index = nearest(shape, hit)
-        if index < 0:
+        shape = transform_points(rig_format.rig_space(obj), rig.get(obj).shown)
+        if len(shape) == 0:
             raise RigError(f"'{obj.name}' has no points to pin")
         missing = settings.handle_collection is None
-        handle = handles.add(obj, tuple(shape[index]))
+        # Where the pose overlaps itself, on the part the view shows: the hit lies on the plane,
+        # as near a part left there, under the others, as to the one in front.
+        handle = handles.add(obj, tuple(in_front(hit, shape, plane[1])), snap=True)
         context.view_layer.update()
         return DragState(obj, handle, True, plane, hit, missing)
     # A handle deleted in the viewport lingers as an orphan (in no scene): never grab it. Pins

@@ -81,7 +81,7 @@ def collection(obj):
     return collection
 
 
-def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0):
+def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0, snap=False):
     """Add a handle at a world ``location`` (projected onto the shape's plane).
 
     The handle owns the graph points near the place on the rest shape that is now under
@@ -98,7 +98,8 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0):
     distance, as a lever: ``notes`` (a list), when given, gets a sentence saying so.
 
     ``island``, where known, is the island + 1 of the vertex ``location`` is at (see
-    ``sources.selected_islands``; 0: not known).
+    ``sources.selected_islands``; 0: not known). With ``snap``, a ``location`` off the shape
+    puts the handle on the shape's nearest point instead.
 
     Returns
     -------
@@ -117,7 +118,7 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0):
     rig = rigs.as_shown(obj)
     world = rig_format.rig_space(obj)
     graph = rig.graph
-    point, rest_centre, triangle = _place(obj, rig, location, on_rest)
+    point, rest_centre, triangle = _place(obj, rig, location, on_rest, snap)
     pieces, piece = _piece(obj, graph, triangle, island)
     if kind != "POSITION":
         if notes is not None and distance_off(rig.posed, graph.triangles, point) > 1e-4 * graph.size:
@@ -151,12 +152,12 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0):
     return empty
 
 
-def _place(obj, rig, location, on_rest=False):
+def _place(obj, rig, location, on_rest=False, snap=False):
     """:func:`~solver.rigging.handles.place` for owner ``obj``'s rig at world ``location``."""
     graph = rig.graph
     try:
         return place(rig.plane, rig_format.rig_space(obj), location, graph.points, rig.posed, graph.triangles,
-                     on_rest, posed_heights=rig.plane.heights(rig.shown))
+                     on_rest, posed_heights=rig.plane.heights(rig.shown), snap=snap)
     except ValueError as err:
         raise RigError(f"'{obj.name}': {err}") from None
 

@@ -261,7 +261,8 @@ def _layer_at(posed_points, posed_heights, triangles, point, height):
     return best, weights[best]
 
 
-def place(plane, space, location, rest_points, posed_points, triangles, on_rest=False, posed_heights=None):
+def place(plane, space, location, rest_points, posed_points, triangles, on_rest=False, posed_heights=None,
+          snap=False):
     """Where a handle added at ``location`` goes, in the shape's plane.
 
     Parameters
@@ -281,6 +282,9 @@ def place(plane, space, location, rest_points, posed_points, triangles, on_rest=
         where the pose folds the shape over itself, the handle goes on the layer whose height
         is nearest ``location``'s (the one clicked on; the one in front for a location under
         them all, on the plane), not on whichever the triangulation gives first.
+    snap : bool
+        Off the shape (with ``posed_heights``), go on its nearest posed point rather than
+        where ``location`` is.
 
     Returns
     -------
@@ -315,6 +319,10 @@ def place(plane, space, location, rest_points, posed_points, triangles, on_rest=
     triangles = np.asarray(triangles, dtype=np.int64)
     layer = None if posed_heights is None else \
         _layer_at(posed_points, posed_heights, triangles, point, plane.heights(in_rig)[0])
+    if layer is None and snap:
+        posed_points = np.asarray(posed_points, dtype=np.float64)
+        nearest = int(np.argmin(np.linalg.norm(posed_points - point, axis=1)))
+        return posed_points[nearest], np.asarray(rest_points, dtype=np.float64)[nearest], None
     if layer is None:
         return point, rest_position(rest_points, posed_points, triangles, point[None])[0], None
     triangle, weights = layer

@@ -320,3 +320,27 @@ def test_a_handle_under_a_turned_child_of_moves_with_the_mouse(addon):
     assert op.session.state.handle == right
     modal(op, bpy.context, event("MOUSEMOVE", "NOTHING", start + np.array([0.3, 0.2, 0.0])))
     np.testing.assert_allclose(np.array(right.matrix_world.translation) - start, [0.3, 0.2, 0.0], atol=1e-5)
+
+
+def test_ctrl_click_where_the_pose_overlaps_itself_pins_the_part_in_front(addon):
+    """An arm swung across the torso is drawn in front of it: Ctrl+click on it pins the arm.
+    The point nearest the click on the plane was often the torso's, left on the plane under
+    the arm (8 of 13 clicks on a grease-pencil arm), so the drag pulled the hidden torso."""
+    from test_overlap_depth import figure, swing_arm_across
+
+    rig_format = addon.shapedeform_addon.rig_format
+    obj, _ = figure()
+    swing_arm_across(obj)
+    bpy.context.scene.frame_set(10)
+    rest, posed = checks.mesh_points(obj), checks.evaluated_mesh_points(obj)
+    # The forearm, whose handle regions do not reach the shoulder.
+    over_torso = np.flatnonzero((rest[:, 0] > 0.8) & (np.abs(posed[:, 0]) < 0.2) & (np.abs(posed[:, 1]) < 0.9))
+    assert len(over_torso) >= 4
+    for k in over_torso:
+        modal, op, _ = operator_stand_in(addon, obj)
+        click = np.array(checks.world(obj, posed[k]))
+        click[2] = 0.0  # on the plane, where the ray from the view meets it
+        modal(op, bpy.context, event("LEFTMOUSE", "PRESS", click, ctrl=True))
+        region = np.asarray(obj.shapedeform.handles[-1][rig_format.HANDLE_INDICES])
+        assert np.all(rest[region, 0] > 0.3 + 1e-6), f"a click on the arm at {posed[k]} pinned the torso"
+        assert modal(op, bpy.context, event("RIGHTMOUSE", "PRESS")) == {"CANCELLED"}

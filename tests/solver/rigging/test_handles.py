@@ -139,6 +139,33 @@ def test_place_gives_the_triangle_of_the_layer_in_front():
     assert place(plane, np.eye(4), location, flat, flat, triangles)[2] is None
 
 
+def test_a_location_lifted_in_front_of_the_shape_goes_on_the_layer_in_front():
+    """Where one piece is left on the plane and the other lifted over it, a location on the
+    plane is nearest the one left there; lifted past every point (drag.in_front) it goes on
+    the one in front, whichever that is. Off the shape, ``snap`` puts it on the nearest point."""
+    from solver.rigging.drag import in_front
+    from solver.rigging.handles import place
+
+    points, triangles, pieces = puppet()
+    shape = np.column_stack([points, np.zeros(len(points))])
+    plane = fit_plane(shape)
+    flat = plane.to_2d(shape)
+    for front in (0, 1):
+        heights = np.where(pieces == front, 0.02, 0.0)
+        shown = plane.to_3d(flat, heights)
+        on_plane = np.array([1.5, 0.5, 0.0])
+        _, _, triangle = place(plane, np.eye(4), on_plane, flat, flat, triangles, posed_heights=heights)
+        assert pieces[triangles[triangle, 0]] != front  # on the plane: the piece left there
+        lifted = in_front(on_plane, shown, plane.normal)
+        point, _, triangle = place(plane, np.eye(4), lifted, flat, flat, triangles, posed_heights=heights)
+        assert pieces[triangles[triangle, 0]] == front
+        np.testing.assert_allclose(plane.to_3d(point[None])[0], on_plane, atol=1e-12)
+    off = np.array([9.0, 0.6, 0.0])
+    point, centre, triangle = place(plane, np.eye(4), off, flat, flat, triangles, posed_heights=heights, snap=True)
+    nearest = np.argmin(np.linalg.norm(points - off[:2], axis=1))
+    assert triangle is None and np.array_equal(point, flat[nearest]) and np.array_equal(centre, flat[nearest])
+
+
 @pytest.mark.parametrize("scale, offset", [(1.0, 0.0), (0.1, 0.0), (1.0, 1e3), (7.3, -40.0)])
 def test_select_region_takes_every_point_tied_with_the_last(scale, offset):
     """On a grid a vertex's four neighbours are equally near: a region of at least three takes
