@@ -58,9 +58,10 @@ def _report(messages):
     _status_text = text
 
 
-def _pose(objects, depsgraph, final=None):
+def _pose(objects, depsgraph, final=None, refine=True):
     """Pose ``objects``' rigs and write their cages (``final``: with the Render budget; by
-    default, :func:`rig.final_quality`).
+    default, :func:`rig.final_quality`); with ``refine``, have those a Viewport-budget solve
+    left short refined once the updates pause.
 
     Blender evaluates again by itself when a depsgraph_update_post or frame_change_post
     handler tagged data (a second pass without callbacks), so what is evaluated when the
@@ -75,13 +76,14 @@ def _pose(objects, depsgraph, final=None):
         messages = [rig.pose_safely(obj, depsgraph, final) for obj in objects
                     if not rig_format.is_baked(obj)]  # a baked rig's keys play (see bake.py)
     _report([m for m in messages if m])
-    if not (final or rig.final_quality()):
-        _refine_later()
+    if refine and not (final or rig.final_quality()):
+        _refine_later(objects)
 
 
-def _refine_later():
-    """Have :func:`refine` run once the updates pause, if any rig is unsettled."""
-    if rig.unsettled(bpy.context.scene):
+def _refine_later(owners=None):
+    """Have :func:`refine` run once the updates pause, if any of ``owners`` (by default, the
+    scene's rigs) is unsettled. A refine already waiting for other rigs still runs."""
+    if rig.unsettled(bpy.context.scene, owners):
         if bpy.app.timers.is_registered(refine):
             bpy.app.timers.unregister(refine)  # still moving: wait for the next pause
         bpy.app.timers.register(refine, first_interval=REFINE_AFTER)
@@ -195,17 +197,17 @@ def on_frame_change(scene, depsgraph):
     # and leave the rigs the viewport does not show to be posed when they stop.
     owners = [o for o in rig_format.owners(scene, depsgraph) if o.shapedeform.handles]
     interactive = _interactive()
-    if interactive:
-        view_layer, seen = bpy.context.view_layer, []
-        for obj in owners:
-            if _unseen(obj, view_layer):
-                rig.defer(obj)
-            else:
-                seen.append(obj)
-        owners = seen
-    _pose(owners, depsgraph, final=not interactive)
-    if interactive:
-        _refine_later()
+    if not interactive:
+        _pose(owners, depsgraph, final=True)
+        return
+    view_layer, seen = bpy.context.view_layer, []
+    for obj in owners:
+        if _unseen(obj, view_layer):
+            rig.defer(obj)
+        else:
+            seen.append(obj)
+    _pose(seen, depsgraph, final=False, refine=False)
+    _refine_later(owners)  # the scene's rigs found once per frame: deferred ones too
 
 
 def _unseen(owner, view_layer):

@@ -347,11 +347,12 @@ def defer(obj):
     _deferred.add(obj.original.session_uid)
 
 
-def unsettled(scene):
-    """Rig owners of ``scene`` whose shown pose is not what a render gives: a Viewport-budget
-    solve that did not converge (also one an undo step brought back, marked on its cage), or
-    one :func:`defer` left behind."""
-    return [obj for obj in rig_format.owners(scene) if obj.session_uid in _deferred or (
+def unsettled(scene, owners=None):
+    """Rig owners of ``scene`` (or of ``owners``, when the caller has them) whose shown pose is
+    not what a render gives: a Viewport-budget solve that did not converge (also one an undo
+    step brought back, marked on its cage), or one :func:`defer` left behind."""
+    owners = rig_format.owners(scene) if owners is None else owners
+    return [obj for obj in owners if obj.session_uid in _deferred or (
         not _cache[obj.session_uid].settled if obj.session_uid in _cache else rig_format.is_unsettled(obj))]
 
 

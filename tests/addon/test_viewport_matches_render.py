@@ -118,3 +118,19 @@ def test_every_cached_rigs_coarse_copy_outlives_a_rebuild(addon, monkeypatch):
     for obj in objects:
         rig.pose(obj)
     assert all(copies._copies.get(key) is value for key, value in made.items())
+
+
+def test_playback_looks_through_the_scene_for_rigs_once_per_frame(addon, monkeypatch):
+    """Finding the scene's rigs walks its objects (5.5 ms with 5,000 Empties): playback did it
+    three times a frame (posing, then twice asking whether a refine was due)."""
+    rig_format, handlers = addon.shapedeform_addon.rig_format, addon.shapedeform_addon.handlers
+    scene = bpy.context.scene
+    keyed_grid("Shown", 12)
+    scene.frame_set(1)
+    walks = []
+    owners = rig_format.owners
+    monkeypatch.setattr(rig_format, "owners", lambda *args, **kw: walks.append(1) or owners(*args, **kw))
+    monkeypatch.setattr(handlers, "_interactive", lambda: True)  # as if the animation played
+    for frame in range(2, 6):
+        scene.frame_set(frame)
+    assert len(walks) == 4
