@@ -62,13 +62,14 @@ from ..solver.rigging.outline import REFINE_BUDGET
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 18
+VERSION = 19
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
-# An integer point attribute: on the cage, each point's island + 1; on a mesh that is its own
-# graph in several islands, each vertex's (hidden: the name starts with a dot). 0 or missing:
-# not known (a rig bound by an older version, a vertex added since binding).
+# An integer point attribute: on the cage, each point's island number (from a first number of
+# the rig's own, ``rig_format.island_numbers``); on a mesh that is its own graph in several
+# islands, each vertex's (hidden: the name starts with a dot). 0, missing, or outside the
+# cage's numbers: not known (a vertex added since binding, a rigged puppet joined in).
 ISLAND = ".sd_island"
 # The name of a boolean attribute naming what the rig deforms (grease-pencil layers chosen at
 # bind time, on the LAYER domain), given to each modifier (``RIGGED_INPUT``): objects sharing
@@ -329,23 +330,32 @@ class _Cage:
         self.span = b.math("SUBTRACT", box.outputs["Max"], self.corner)
 
     def _islands(self):
-        """``island``: a point's island of the cage + 1 (:data:`ISLAND`), on the cage and on the
-        deformed geometry alike; 0 where it is not one of the cage's (unknown, or the cage has
-        none). ``tile``: where the island's UVs lie (:meth:`uv`). ``has_islands``: whether the
-        cage has any (a boolean single value; none where Bind found one island, or an older
-        version bound the rig)."""
+        """``island``: a point's island of the cage, counted from 1 (its :data:`ISLAND` number
+        less the cage's first, plus 1), on the cage and on the deformed geometry alike; 0 where
+        it is not one of the cage's (unknown, another rig's, or the cage has none). ``tile``:
+        where the island's UVs lie (:meth:`uv`). ``has_islands``: whether the cage has any (a
+        boolean single value; none where Bind found one island, or an older version bound the
+        rig)."""
         b = self.b
         given = b.node("GeometryNodeInputNamedAttribute", {"Name": ISLAND}, data_type="INT").outputs[0]
-        count = b.node("GeometryNodeAttributeStatistic", {"Geometry": self.rest, "Attribute": given},
-                       data_type="FLOAT", domain="POINT").outputs["Max"]
-        self.has_islands = b.node("FunctionNodeCompare", {"A": count, "B": 0.5}, data_type="FLOAT",
+        numbers = b.node("GeometryNodeAttributeStatistic", {"Geometry": self.rest, "Attribute": given},
+                         data_type="FLOAT", domain="POINT")
+        first, last = numbers.outputs["Min"], numbers.outputs["Max"]
+        self.has_islands = b.node("FunctionNodeCompare", {"A": last, "B": 0.5}, data_type="FLOAT",
                                   operation="GREATER_THAN").outputs[0]
-        low = b.node("FunctionNodeCompare", {"A": given, "B": 1.0}, data_type="FLOAT",
+        low = b.node("FunctionNodeCompare", {"A": given, "B": first}, data_type="FLOAT",
                      operation="GREATER_EQUAL").outputs[0]
-        high = b.node("FunctionNodeCompare", {"A": given, "B": count}, data_type="FLOAT",
+        high = b.node("FunctionNodeCompare", {"A": given, "B": last}, data_type="FLOAT",
                       operation="LESS_EQUAL").outputs[0]
         listed = b.node("FunctionNodeBooleanMath", [low, high], operation="AND").outputs[0]
-        self.island = b.node("ShaderNodeMath", [given, listed], operation="MULTIPLY").outputs[0]
+        listed = b.node("FunctionNodeBooleanMath", [listed, self.has_islands], operation="AND").outputs[0]
+
+        def counted(number):  # from 1
+            return b.node("ShaderNodeMath", [b.node("ShaderNodeMath", [number, first], operation="SUBTRACT").outputs[0],
+                                             1.0], operation="ADD").outputs[0]
+
+        self.island = b.node("ShaderNodeMath", [counted(given), listed], operation="MULTIPLY").outputs[0]
+        count = counted(last)
         # Islands in a square of tiles two units apart (apart from the unit square of island
         # 0), near the origin: UVs keep float32's precision with hundreds of islands.
         columns = b.node("ShaderNodeMath", [b.node("ShaderNodeMath", [count, 1.0], operation="ADD").outputs[0]],

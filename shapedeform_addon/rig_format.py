@@ -26,7 +26,7 @@ The cage, a mesh object parented to the owner (or, on a curve whose Path Animati
     copying its transform: :func:`follows_by_constraint`) and hidden:
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
     space when it was bound), its point attribute ``sd_rest`` the rest (and ``nodes.ISLAND``
-    each point's island + 1, where the owner's vertices have theirs), ``shapedeform.rig``
+    each point's island number (:func:`island_numbers`), where the owner's vertices have theirs), ``shapedeform.rig``
     the owner. A bake is shape keys on its mesh, its Key marked ``shapedeform_bake``
     (:mod:`.bake`); the mesh's ``shapedeform_cage`` names the owner's cage object it belongs
     to (:func:`.handles.own_cage_mesh`). In a library override of a rigged character the cage's mesh is a local
@@ -42,6 +42,8 @@ owner's rig (the same handles; a cage object of its own, in no collection, paren
 sharing the rig's cage mesh: :func:`.handles.follow`) and is never posed on its own. Unbinding
 the owner releases it first (:func:`.handles.release_followers`).
 """
+
+import random
 
 import bpy
 import numpy as np
@@ -236,7 +238,7 @@ def watches_handles(obj):
 
 def make_cage(obj, plane, graph, collection, islands=None):
     """The cage object of ``obj``'s rig, at rest, parented to it and linked into ``collection``;
-    ``islands`` (each graph point's island + 1) where ``obj``'s points carry theirs."""
+    ``islands`` (each graph point's island number) where ``obj``'s points carry theirs."""
     rest = plane.to_3d(graph.points).astype(np.float32)
     mesh = bpy.data.meshes.new(f"{obj.name} Cage")
     mesh.from_pydata(rest.tolist(), [], graph.triangles.tolist())
@@ -375,9 +377,32 @@ def shown_pose(cage):
     return mix
 
 
+# A rig numbers its islands from a first number of its own (:func:`island_numbers`), so that a
+# rigged puppet joined into another keeps numbers that are none of that rig's. Every number stays
+# under 2**24, which the group's float math holds exactly.
+ISLANDS_PER_RIG = 4096
+
+
+def island_numbers(pieces):
+    """Each graph point's island number for a new rig, (n,) int32, from its piece (n,) (0 to
+    k - 1): the first number a multiple of :data:`ISLANDS_PER_RIG` drawn at random, and
+    unlike those of the file's rigs (a rig bound by an older version numbered from 1). A rig
+    of more islands than that numbers them from 1."""
+    pieces = np.asarray(pieces, dtype=np.int32)
+    if pieces.max(initial=0) + 1 >= ISLANDS_PER_RIG:
+        return pieces + 1
+    cages = [obj.shapedeform.cage for obj in bound_objects() if is_owner(obj) and obj.shapedeform.cage is not None]
+    taken = {int(islands.min()) // ISLANDS_PER_RIG for islands in map(islands_of, (c.data for c in cages))
+             if islands is not None and len(islands)}
+    free = sorted(set(range(1, ISLANDS_PER_RIG)) - taken)
+    first = random.choice(free) * ISLANDS_PER_RIG if free else 0
+    return pieces + first + 1
+
+
 def islands_of(mesh):
-    """Each point's island + 1, (n,) int32, that ``mesh`` keeps (:data:`nodes.ISLAND`: on a
-    cage's points, or a mesh's vertices; 0 where not known), or None where it keeps none."""
+    """Each point's island number, (n,) int32, that ``mesh`` keeps (:data:`nodes.ISLAND`, see
+    :func:`island_numbers`: on a cage's points, or a mesh's vertices; 0 where not known), or
+    None where it keeps none."""
     attribute = mesh.attributes.get(nodes.ISLAND)
     if attribute is None or attribute.domain != "POINT" or attribute.data_type != "INT":
         return None

@@ -20,7 +20,7 @@ Each source module offers the same functions:
     Local rest positions of the selected points (for a handle at each).
 
 Where a source's points keep their island (a mesh that is its own graph in several islands),
-it also offers ``selected_islands(obj) -> (k,) int or None``: each selected point's island + 1
+it also offers ``selected_islands(obj) -> (k,) int or None``: each selected point's island number
 (0 where not known), in ``selected``'s order, or None where the object keeps none. It tells
 which part a handle at a selected point holds where islands overlap (a puppet's arm vertex on
 a body vertex); :func:`selected_islands` gives None for the other sources.

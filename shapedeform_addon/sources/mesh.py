@@ -3,7 +3,7 @@
 outline; the mesh's points are never written (its Shape Deform modifier shows the pose).
 
 A mesh that is its own graph with several islands gets a hidden point attribute,
-:data:`ISLAND`: each vertex's island of the graph + 1 (see :mod:`..nodes`). Blender carries it
+:data:`ISLAND`: each vertex's island number (see :mod:`..nodes`). Blender carries it
 through Edit Mode, Separate, shape keys and the modifier's subdivision, so overlapping islands
 (a cut-out puppet's arm over its body) stay apart whatever the vertices' indices and places
 become; unbind removes it.
@@ -179,14 +179,15 @@ def _outline_graph(flat, tris, loops, density):
 
 
 def _islands(graph):
-    """Each graph point's island + 1, (n,) int32; None when the graph is one piece."""
-    islands = graph.components().astype(np.int32) + 1
-    return islands if islands.max() > 1 else None
+    """Each graph point's island number (n,) int32 (:func:`rig_format.island_numbers`); None
+    when the graph is one piece."""
+    pieces = graph.components()
+    return rig_format.island_numbers(pieces) if pieces.max() > 0 else None
 
 
 def _mark_islands(obj, vertex_islands):
-    """Write each vertex's island + 1 into the mesh as :data:`ISLAND` (another rig of this data
-    may have written it: it is made anew)."""
+    """Write each vertex's island number into the mesh as :data:`ISLAND` (another rig of this
+    data may have written it: it is made anew)."""
     attributes = obj.data.attributes
     if attributes.get(ISLAND) is not None:
         attributes.remove(attributes[ISLAND])

@@ -23,7 +23,7 @@ class Prepared:
         Values the deformer modifier's inputs start with, by input name, where this object's
         differ from the node group's defaults (grease pencil: Stroke Order).
     islands : (n,) int32 ndarray or None
-        Each graph point's island + 1, for the cage, where ``commit`` gives the object's points
+        Each graph point's island number, for the cage, where ``commit`` gives the object's points
         theirs (a mesh that is its own graph, in several islands); None elsewhere.
     """
 

@@ -801,3 +801,34 @@ def test_a_pose_does_not_depend_on_the_shapes_size(addon):
         bpy.context.view_layer.update()
         poses.append((checks.evaluated_mesh_points(obj).astype(float) - rest)[:, :2] / width)
     assert np.abs(poses[0] - poses[1]).max() < 1e-4
+
+
+def test_a_rigged_puppet_joined_into_another_follows_the_parts_it_lies_on(addon):
+    """Ctrl+J of one bound puppet into another: the joined vertices kept their own rig's island
+    numbers, which the other rig read as its own, so the joined arm's vertices lying on the
+    body moved up 1.0 with the other's arm. Numbered apart, they are looked up by their place."""
+    island = addon.shapedeform_addon.nodes.ISLAND
+    first, _ = puppet()
+    pose_puppet(first)
+    second, _ = puppet()
+    second.name = "Second"
+    second.location = (-1.2, 0.0, 0.0)
+    bpy.context.view_layer.update()
+    checks.select_only(second)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    numbers = [np.zeros(len(o.data.vertices), np.int32) for o in (first, second)]
+    for obj, values in zip((first, second), numbers):
+        obj.data.attributes[island].data.foreach_get("value", values)
+    assert not set(numbers[0]) & set(numbers[1])  # each rig numbers its islands apart
+    joined_rest = checks.mesh_points(second) + [-1.2, 0.0, 0.0]
+    arm = numbers[1] == numbers[1].max()
+    count = len(first.data.vertices)
+    checks.select_only(second)
+    first.select_set(True)
+    bpy.context.view_layer.objects.active = first
+    assert bpy.ops.object.join() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    moved = checks.evaluated_mesh_points(first)[count:, :2] - joined_rest[:, :2]
+    on_body_only = arm & (joined_rest[:, 0] < 1.15)  # left of the first puppet's arm
+    assert on_body_only.sum() >= 4
+    np.testing.assert_allclose(moved[on_body_only], 0.0, atol=1e-3)
