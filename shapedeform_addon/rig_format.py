@@ -604,7 +604,7 @@ def owners(scene, depsgraph=None):
             objects.extend(collection.all_objects)
         if not obj.shapedeform.is_bound:  # most of a big scene: one property read (every frame)
             continue
-        owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
+        owner = owner_of(obj)
         if _posable_owner(owner):
             found.append(owner)
     found += _evaluated_owners(scene, depsgraph, set(found))
@@ -620,7 +620,7 @@ def _evaluated_owners(scene, depsgraph, known):
     found = []
     for obj in bound_objects():
         if obj not in known and obj.shapedeform.is_bound and obj.evaluated_get(depsgraph).is_evaluated:
-            owner = obj.shapedeform.cage.shapedeform.rig if is_follower(obj) else obj
+            owner = owner_of(obj)
             if owner not in known and _posable_owner(owner):
                 found.append(owner)
     return found

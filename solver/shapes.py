@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["box_centre", "signed_area", "clean_ring", "shape_geometry", "geometry_rings", "nesting_depth"]
+__all__ = ["box_centre", "signed_area", "clean_ring", "polygonal_part", "shape_geometry", "geometry_rings", "nesting_depth"]
 
 
 def box_centre(points):
@@ -86,7 +86,7 @@ def clean_ring(ring, index=0):
     return points
 
 
-def _polygonal_part(geometry):
+def polygonal_part(geometry):
     """Keep only the polygons of a geometry (make_valid may also return lines and points)."""
     parts = shapely.get_parts(geometry)
     polygons = [p for p in parts if isinstance(p, (shapely.Polygon, shapely.MultiPolygon))]
@@ -128,7 +128,7 @@ def shape_geometry(rings):
     for i, ring in enumerate(cleaned):
         polygon = shapely.Polygon(ring)
         if not polygon.is_valid:
-            polygon = _polygonal_part(shapely.make_valid(polygon))
+            polygon = polygonal_part(shapely.make_valid(polygon))
             if polygon.is_empty or polygon.area <= 1e-9 * abs(signed_area(ring)) + 1e-300:
                 raise ValueError(f"ring {i} is self-intersecting and cannot be repaired")
         polygons.append(polygon)
@@ -145,7 +145,7 @@ def shape_geometry(rings):
             if holes:
                 island = shapely.difference(island, shapely.union_all(holes))
             islands.append(island)
-        geometry = _polygonal_part(shapely.union_all(islands))
+        geometry = polygonal_part(shapely.union_all(islands))
     if geometry.is_empty or geometry.area <= 0.0:
         raise ValueError("the rings enclose no area")
     geometry = _separate_pinches(geometry)
@@ -160,7 +160,7 @@ def _separate_pinches(geometry):
         return geometry
     size = float(np.linalg.norm(np.ptp(points, axis=0)))
     separated = geometry.buffer(-1e-6 * size, join_style="mitre", mitre_limit=10.0)
-    return _polygonal_part(separated) if not separated.is_empty else geometry
+    return polygonal_part(separated) if not separated.is_empty else geometry
 
 
 def nesting_depth(polygons):

@@ -34,7 +34,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-__all__ = ["HEIGHT_PER_SCORE", "MAX_SCORE", "AUTO_WEIGHT", "EDGE", "moved_score", "pin_weights", "heights"]
+__all__ = ["HEIGHT_PER_SCORE", "MAX_SCORE", "AUTO_WEIGHT", "EDGE", "moved_score", "pin_weights", "heights", "stiffness",
+           "reach_tints"]
 
 HEIGHT_PER_SCORE = 0.02
 # Pins' amounts add up without bound (an In Front typed as -1000 put the bar 20 of its sizes

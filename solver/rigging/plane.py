@@ -70,13 +70,6 @@ class Plane:
             result += np.asarray(heights, dtype=np.float64)[:, None] * self.axes[2]
         return result
 
-    def matrix(self):
-        """4x4 matrix taking plane coordinates (u, v, height, 1) to 3D: the plane's frame."""
-        m = np.eye(4)
-        m[:3, :3] = self.axes.T
-        m[:3, 3] = self.origin
-        return m
-
     def to_array(self):
         """The plane as 12 numbers (origin, u, v, normal), for storing."""
         return np.concatenate([self.origin, self.axes.ravel()])

@@ -12,7 +12,7 @@ import numpy as np
 import shapely
 from scipy import ndimage
 
-from ..shapes import _polygonal_part, geometry_rings, shape_geometry
+from ..shapes import polygonal_part, geometry_rings, shape_geometry
 from ..trace import coverage, trace_silhouette
 
 __all__ = ["stroke_silhouette", "image_cutout", "map_by_triangles"]
@@ -87,8 +87,8 @@ def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, toler
         outlines = shapely.linearrings(np.concatenate([points[offsets[i]:offsets[i + 1]] for i in closed]),
                                        indices=np.repeat(np.arange(len(closed)), counts[closed]))
         fills = shapely.make_valid(shapely.polygons(outlines))
-        parts.extend(_polygonal_part(f) for f in fills)
-    union = _polygonal_part(shapely.union_all(parts))
+        parts.extend(polygonal_part(f) for f in fills)
+    union = polygonal_part(shapely.union_all(parts))
     if union.is_empty or union.area <= 0:
         raise ValueError("the strokes cover no area")
     if tolerance is None:
@@ -136,7 +136,7 @@ def image_cutout(image, margin=1.0, level=1.0 / 255.0, tolerance=0.5, window=Non
     frame = shapely.box(0, 0, width, height)
     if window is not None:
         frame = shapely.intersection(frame, shapely.Polygon(np.asarray(window, dtype=np.float64)).buffer(0))
-    clipped = _polygonal_part(shapely.intersection(grown, frame))
+    clipped = polygonal_part(shapely.intersection(grown, frame))
     if clipped.is_empty:
         raise ValueError("no visible pixel of the picture lies in the part its UVs show")
     simplified = shapely.simplify(clipped, 0.25 * margin, preserve_topology=True)
