@@ -8,8 +8,8 @@ the rest of the add-on calls one name on every Blender. Nothing here is register
   ``bpy_extras.anim_utils.action_ensure_channelbag_for_slot``; 4.5 has only the getter, and
   the same is reached through the action's first layer and keyframe strip.
 - Which actions an ID plays: its active action and its NLA strips' (a meta strip holding strips
-  of its own), each with the slot it plays, as readers of keys need them on every version;
-  and so whether a property is keyed (or driven).
+  of its own), each with the slot it plays, as readers of keys need them on every version
+  (and what holds each, to give it another); and so whether a property is keyed (or driven).
 - A Geometry Nodes modifier's inputs: ID properties of the modifier keyed by socket identifier
   up to 5.1; from 5.2 ``modifier.properties.inputs.<identifier>.value`` (the modifier takes no
   ID properties).
@@ -40,14 +40,19 @@ def ensure_channelbag(action, slot):
     return strip.channelbag(slot, ensure=True)
 
 
+def action_holders(animation):
+    """What in ``animation`` (an ID's AnimData, or None) holds an action to play, each with
+    ``action`` and ``action_slot`` (None where empty): ``animation`` itself (its active action)
+    and every NLA strip, those inside meta strips included."""
+    if animation is None:
+        return []
+    return [animation] + [strip for track in animation.nla_tracks for strip in _strips(track.strips)]
+
+
 def played_actions(animation):
     """The (action, slot) pairs ``animation`` (an ID's AnimData, or None) plays: its active
     action's and every NLA strip's, those inside meta strips included; empty strips left out."""
-    if animation is None:
-        return []
-    played = [(animation.action, animation.action_slot)]
-    played += [(strip.action, strip.action_slot) for track in animation.nla_tracks for strip in _strips(track.strips)]
-    return [(action, slot) for action, slot in played if action is not None]
+    return [(holder.action, holder.action_slot) for holder in action_holders(animation) if holder.action is not None]
 
 
 def _strips(strips):

@@ -348,8 +348,9 @@ def adopt_duplicated(obj):
 
     Duplicating objects together points the copies' references at each other: the copy's
     handle list then names the copied Empties, whose rig is the copy. Those become its
-    handles; it gets its own cage (a copy of the rig's, pose and bake included) and its own
-    handle collection, and its list drops the handles that stayed with the original.
+    handles; it gets its own cage (a copy of the rig's, pose and bake included, the bake's keys
+    in an action of its own: ``rig_format.copy_cage_mesh``) and its own handle collection, and
+    its list drops the handles that stayed with the original.
 
     Pins alone pull nothing, and a rig of their own would snap the copy to its rest shape:
     duplicated without a handle, the copy follows the rig, and the copied pins are copies of
@@ -364,7 +365,7 @@ def adopt_duplicated(obj):
             empty.shapedeform.rig = settings.cage.shapedeform.rig
         return False
     shared = settings.cage
-    cage = _cage_for(obj, shared, shared.data.copy())
+    cage = _cage_for(obj, shared, rig_format.copy_cage_mesh(shared.data))
     cage.shapedeform.rig = obj
     settings.handle_collection = None  # the original's: this rig gets its own
     home = collection(obj)
@@ -490,7 +491,7 @@ def own_cage_mesh(obj):
         mesh[rig_format.CAGE_STAMP] = cage  # not stamped yet (an older file), or a copy made for this cage
         return False
     followers = follower_cages(obj)
-    mesh = mesh.copy()
+    mesh = rig_format.copy_cage_mesh(mesh)
     for own in [cage, *followers]:
         own.data = mesh
     mesh[rig_format.CAGE_STAMP] = cage

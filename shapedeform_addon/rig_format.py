@@ -27,9 +27,10 @@ The cage, a mesh object parented to the owner (or, on a curve whose Path Animati
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
     space when it was bound), its point attribute ``sd_rest`` the rest (and ``nodes.ISLAND``
     each point's island number (:func:`island_numbers`), where the owner's vertices have theirs), ``shapedeform.rig``
-    the owner. A bake is shape keys on its mesh, its Key marked ``shapedeform_bake``
-    (:mod:`.bake`); the mesh's ``shapedeform_cage`` names the owner's cage object it belongs
-    to (:func:`.handles.own_cage_mesh`). In a library override of a rigged character the cage's mesh is a local
+    the owner. A bake is shape keys on its mesh, its Key and action marked ``shapedeform_bake``
+    (:mod:`.bake`; a copy of the mesh for a rig of its own has an action of its own:
+    :func:`copy_cage_mesh`); the mesh's ``shapedeform_cage`` names the owner's cage object it
+    belongs to (:func:`.handles.own_cage_mesh`). In a library override of a rigged character the cage's mesh is a local
     copy of the library's, made the first time the rig poses, bakes or clears a bake
     (:func:`own_mesh`), and again when the library's rig was bound anew
     (:func:`follow_library_cage`).
@@ -309,6 +310,30 @@ def own_mesh(cage):
             if other.data == shared and other.shapedeform.rig == cage.shapedeform.rig and other.library is None:
                 other.data = mesh
     return mesh
+
+
+def copy_cage_mesh(mesh):
+    """A copy of the cage mesh ``mesh`` for a rig of its own, with a bake of its own.
+
+    Copying a mesh copies its shape keys, not the actions that key them: the two rigs' bakes
+    would be one action, and retiming one's keys would retime the other's. Each bake action
+    (marked :data:`BAKE_MARK`) the copy's Key plays, active or in the NLA, is replaced by a copy,
+    in the same slot and marked as well (so Clear Bake removes it with its Key); other actions
+    stay shared, as Blender's own copies leave them.
+    """
+    copy = mesh.copy()
+    key = copy.shape_keys
+    copies = {}  # one copy of an action however many strips play it
+    for holder in compat.action_holders(key.animation_data if key is not None else None):
+        action, slot = holder.action, holder.action_slot
+        if action is None or not action.get(BAKE_MARK):
+            continue
+        if action not in copies:
+            copies[action] = action.copy()
+        holder.action = copies[action]
+        if slot is not None:
+            holder.action_slot = copies[action].slots[slot.identifier]
+    return copy
 
 
 def write_pose(cage, points, settled=True):

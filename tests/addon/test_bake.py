@@ -739,3 +739,53 @@ def test_what_is_drawn_over_a_baked_rig_and_handles_added_to_it_take_the_bake_sh
     assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
     scene.frame_set(6)
     np.testing.assert_allclose(checks.evaluated_mesh_points(obj), shown, atol=1e-3)
+
+
+def test_a_copy_of_a_baked_rig_bakes_into_an_action_of_its_own(addon):
+    """Shift+D of a baked rig with its handles gives the copy a rig of its own, its cage a copy
+    of the baked one: the two Keys played one action, so retiming the copy's bake keys moved the
+    original's pose (0.507 measured). The copy's Key gets a copy of the bake action, in its slot
+    and marked, and Clear Bake on either removes only its own. A cage mesh two appended copies
+    shared (Append with Reuse Data) is copied the same way."""
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    shapedeform = addon.shapedeform_addon
+    shapedeform.bake.bake_objects([obj], 1, 6)
+    expected = live(lambda: checks.evaluated_mesh_points(obj))
+    for o in bpy.context.selected_objects:
+        o.select_set(False)
+    for o in [obj] + [item.object for item in obj.shapedeform.handles]:
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.object.duplicate() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    copy = next(o for o in bpy.context.selected_objects if o.type == "MESH")
+    assert shapedeform.rig_format.is_owner(copy)
+
+    def bake_of(o):
+        return o.shapedeform.cage.data.shape_keys.animation_data
+
+    def bake_actions():
+        return {a.name for a in bpy.data.actions if a.get(shapedeform.bake.MARK)}
+
+    original, copied = bake_of(obj), bake_of(copy)
+    assert copied.action != original.action and (original.action.users, copied.action.users) == (1, 1)
+    assert copied.action.get(shapedeform.bake.MARK)
+    assert copied.action_slot.identifier == original.action_slot.identifier
+    for curve in shapedeform.compat.channelbag(copied.action, copied.action_slot).fcurves:
+        for point in curve.keyframe_points:  # retimed in the Dope Sheet: 10 frames later
+            for co in (point.co, point.handle_left, point.handle_right):
+                co.x += 10
+        curve.update()
+    for frame in FRAMES:
+        bpy.context.scene.frame_set(frame)
+        np.testing.assert_allclose(checks.evaluated_mesh_points(obj), expected[frame], atol=1e-5)
+
+    assert shapedeform.bake.clear(copy) == 6
+    assert bake_actions() == {original.action.name}
+    shared = obj.shapedeform.cage.data
+    copy.shapedeform.cage.data = shared  # as two appends reusing data leave them
+    assert shapedeform.handles.own_cage_mesh(copy) and copy.shapedeform.cage.data != shared
+    assert bake_of(copy).action not in (None, original.action)
+    assert shapedeform.bake.clear(copy) == 6 and shapedeform.bake.clear(obj) == 6
+    assert bake_actions() == set()
