@@ -18,7 +18,13 @@ last after it), as keyed animation holds its first and last key.
 A baked rig is marked (``obj.shapedeform["baked"] = [start, end, step]``) and the live rig
 leaves its cage alone: the bake is what plays. :func:`clear` removes the bake and the mark, and
 the rig is live again.
+
+A bake keeps a digest of what it was made from (:func:`fingerprint`, on its Key): once the
+handles' keys or transforms, the pins or the rig's settings change, :func:`is_out_of_date` says
+so, as Blender's physics caches flag themselves outdated.
 """
+
+import hashlib
 
 import bpy
 import numpy as np
@@ -129,6 +135,100 @@ def clear(obj):
     if cage is None or rig_format.own_mesh(cage) is None:
         return 0
     return _remove_keys(cage)
+
+
+# -- what a bake was made from ----------------------------------------------------------------
+
+# The owner's settings its poses depend on when baked: the Viewport budget is not one (a bake
+# solves with the Render one). Pins' are rig_format.PIN_SETTINGS.
+BAKED_SETTINGS = tuple(f"shapedeform.{name}" for name in ("weight_laplacian", "weight_mvc", "weight_edge",
+                                                         "preserve_area", "prevent_flips", "render_iterations"))
+# A handle's own transform (a pin's is not read: it rides on its point).
+HANDLE_TRANSFORM = ("location", "rotation_mode", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
+                    "scale", "delta_location", "delta_rotation_euler", "delta_rotation_quaternion", "delta_scale")
+# What of a keyframe sets the curve: its place, its Bezier handles, how it runs to the next.
+_KEYFRAME_FIELDS = (("co", 2, np.float32), ("handle_left", 2, np.float32), ("handle_right", 2, np.float32),
+                    ("interpolation", 1, np.int32))
+# Values nothing animates count to this many decimals: Apply Transform on the owner gives its
+# handles' transforms back in rig space with rounding errors (4.7e-8 measured), which move nothing.
+_DECIMALS = 5
+
+
+def fingerprint(obj):
+    """A digest of what owner ``obj``'s rig makes its bake from: the rig's settings, the handles
+    (the points each holds, and what sets their transforms), the pins (their points and
+    amounts), and the frames its bake holds (the names of its keys).
+
+    What is keyed or driven counts by its keys (place, Bezier handles, interpolation) and
+    drivers, what is not by its value, so changing frames, saving and undo leave it as it was.
+    Cheap enough for a panel's draw: no frame is evaluated, keys are read in bulk (0.2 ms for
+    two handles; 3 ms for ten, eight of them keyed on each of 250 frames).
+
+    Returns
+    -------
+    str
+        Hexadecimal; it changes when anything that changes the bake's poses does, as far as the
+        rig can tell (not the objects handles are parented or constrained to, nor NLA strips
+        moved).
+    """
+    key = obj.shapedeform.cage.data.shape_keys
+    parts = [repr(key.key_blocks.keys() if key is not None else []).encode(),
+             _what_sets(obj, BAKED_SETTINGS)]
+    for empty, indices, offsets in rig_format.handle_items(obj):
+        parts += [indices.tobytes(), offsets.tobytes(), _what_sets(empty, HANDLE_TRANSFORM)]
+    for kind, names in rig_format.PIN_SETTINGS.items():
+        for empty, point in rig_format.pin_items(obj, kind):
+            parts += [f"{kind} {point}".encode(), _what_sets(empty, tuple(f"shapedeform.{n}" for n in names))]
+    return hashlib.blake2b(b"\0".join(parts), digest_size=16).hexdigest()
+
+
+def is_out_of_date(obj):
+    """Whether owner ``obj`` plays a bake made from other handles, pins or settings than it now
+    has (:func:`fingerprint`); False when not baked, or baked before bakes kept a digest."""
+    made_from = rig_format.bake_source(obj.shapedeform.cage)
+    return made_from is not None and made_from != fingerprint(obj)
+
+
+def _what_sets(block, paths):
+    """Bytes of what sets ``block``'s properties ``paths``: the F-curves of the actions it plays
+    and its drivers, and, for each component no curve sets, its value."""
+    animation = block.animation_data
+    bags = [compat.channelbag(action, slot) for action, slot in compat.played_actions(animation) if slot is not None]
+    keyed = [curve for bag in bags if bag is not None for curve in bag.fcurves if curve.data_path in paths]
+    driven = [curve for curve in (animation.drivers if animation is not None else ()) if curve.data_path in paths]
+    animated = {(curve.data_path, curve.array_index) for curve in keyed + driven}
+    values = [(path, i, round(value, _DECIMALS) + 0.0 if isinstance(value, float) else value)  # -0.0 is 0.0
+              for path in paths for i, value in enumerate(_components(block.path_resolve(path)))
+              if (path, i) not in animated]
+    return b"".join([_keys(curve) for curve in keyed] + [_keys(curve) + _driver(curve.driver) for curve in driven]
+                    + [repr(values).encode()])
+
+
+def _components(value):
+    """A property's value as a tuple of its components (one for a number, a flag or an enum)."""
+    return tuple(value) if hasattr(value, "__len__") and not isinstance(value, str) else (value,)
+
+
+def _keys(curve):
+    """Bytes of what ``curve`` (an F-curve) sets: which property, its keyframes (read in bulk),
+    its extrapolation, whether muted, its modifiers' types."""
+    points = curve.keyframe_points
+    fields = []
+    for name, width, dtype in _KEYFRAME_FIELDS:
+        values = np.empty(len(points) * width, dtype=dtype)
+        points.foreach_get(name, values)
+        fields.append(values.tobytes())
+    head = (curve.data_path, curve.array_index, curve.extrapolation, curve.mute, [m.type for m in curve.modifiers])
+    return repr(head).encode() + b"".join(fields)
+
+
+def _driver(driver):
+    """Bytes of how ``driver`` computes its value (not of the values it reads)."""
+    variables = [(variable.name, variable.type,
+                  [(target.id.name_full if target.id is not None else "", target.data_path, target.transform_type,
+                    target.transform_space, target.bone_target) for target in variable.targets])
+                 for variable in driver.variables]
+    return repr((driver.type, driver.expression, driver.use_self, variables)).encode()
 
 
 # -- the bake ---------------------------------------------------------------------------------
@@ -323,6 +423,7 @@ class Bake:
             clear(obj)
             _write_keys(obj.shapedeform.cage, self.frames, self.captured[obj.name], self.times)
             obj.shapedeform[BAKED] = [self.frames[0], self.frames[-1], self.step_size]
+            rig_format.store_bake_source(obj.shapedeform.cage, fingerprint(obj))
         self.captured.clear()
         self._restore_frame()  # show the baked result at the current frame
         return self.objects

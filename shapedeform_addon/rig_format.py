@@ -29,7 +29,8 @@ The cage, a mesh object parented to the owner (or, on a curve whose Path Animati
     each point's island number (:func:`island_numbers`), where the owner's vertices have theirs), ``shapedeform.rig``
     the owner. A bake is shape keys on its mesh, its Key and action marked ``shapedeform_bake``
     (:mod:`.bake`; a copy of the mesh for a rig of its own has an action of its own:
-    :func:`copy_cage_mesh`); the mesh's ``shapedeform_cage`` names the owner's cage object it
+    :func:`copy_cage_mesh`), the Key's ``shapedeform_baked_from`` a digest of what the bake was
+    made from (:func:`bake_source`; none in files from before it); the mesh's ``shapedeform_cage`` names the owner's cage object it
     belongs to (:func:`.handles.own_cage_mesh`). In a library override of a rigged character the cage's mesh is a local
     copy of the library's, made the first time the rig poses, bakes or clears a bake
     (:func:`own_mesh`), and again when the library's rig was bound anew
@@ -59,6 +60,7 @@ GRAPH_KEYS = ("plane", "graph_points", "graph_edges", "graph_loops", "graph_loop
 MODIFIER_NAME = "Shape Deform"
 BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that plays
 BAKE_MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
+BAKE_SOURCE = "shapedeform_baked_from"  # on a bake's Key: a digest of what it was made from (.bake.fingerprint)
 # On the owner's settings: the name of the attribute marking the grease-pencil layers its rig
 # deforms ("" for all of them); the modifier is given the same name.
 RIGGED_KEY = "rigged_attribute"
@@ -77,7 +79,8 @@ UNSETTLED = "shapedeform_unsettled"  # on a cage's mesh: its pose is a Viewport 
 # object's animation data (Unbind then removes it).
 HANDLES_WATCHED = "shapedeform.handles_watched"
 ANIMATION_MADE = "animation_data_made"
-_PIN_SETTINGS = {"OVERLAP": ("in_front", "extent"), "STARCH": ("stiffness", "extent")}
+# The keyable settings of each kind of pin (a rig's poses depend on them).
+PIN_SETTINGS = {"OVERLAP": ("in_front", "extent"), "STARCH": ("stiffness", "extent")}
 # Kept by older versions, which wrote poses into the object's own data: read only to give the
 # rest shape back (``restore_legacy`` of each source), dropped on unbind.
 LEGACY_GP_LAYERS, LEGACY_GP_FRAMES = "gp_layers", "gp_frames"
@@ -221,7 +224,7 @@ def _watched_targets(owner):
             wanted.append((handle, "TRANSFORMS", ""))
         elif present(handle):
             wanted.extend((handle, "SINGLE_PROP", f"shapedeform.{name}")
-                          for name in _PIN_SETTINGS[handle.shapedeform.pin_kind])
+                          for name in PIN_SETTINGS[handle.shapedeform.pin_kind])
     return wanted
 
 
@@ -600,6 +603,21 @@ def is_baked(obj):
     if keys is None:
         return False
     return bool(keys.get(BAKE_MARK)) or (BAKED in obj.shapedeform and len(keys.key_blocks) > 1)
+
+
+def store_bake_source(cage, digest):
+    """Keep on the bake ``cage`` plays (its Key) the ``digest`` of what it was made from
+    (:func:`.bake.fingerprint`). On the Key rather than the owner: it goes with the bake (Clear
+    Bake, a copy's cage), and stays in a library override's local cage mesh, where the owner's
+    ID properties come back from the library on reopening."""
+    cage.data.shape_keys[BAKE_SOURCE] = digest
+
+
+def bake_source(cage):
+    """The digest :func:`store_bake_source` kept for the bake ``cage`` plays; None without a
+    bake, or for one made before digests were kept."""
+    key = cage.data.shape_keys if cage is not None and cage.data is not None else None
+    return key.get(BAKE_SOURCE) if key is not None else None
 
 
 def owners(scene, depsgraph=None):

@@ -3,7 +3,7 @@
 
 import bpy
 
-from . import compat, handles, keymaps, nodes
+from . import bake, compat, handles, keymaps, nodes
 from .rig_format import active_rig, is_baked, is_follower, modifiers_of, present
 from .sources import grease_pencil
 
@@ -115,11 +115,15 @@ class SHAPEDEFORM_PT_animation(_RigSubPanel, bpy.types.Panel):
         col = self.layout.column(align=True)
         # The drag needs the viewport's own region, so it runs from its key, not a button here.
         col.label(text=f"Drag handles: {keymaps.shortcut('shapedeform.drag')} in the viewport", icon="MOUSE_LMB_DRAG")
-        if is_baked(obj):
-            col.label(text="Baked: the keyframes play, the rig waits", icon="KEYFRAME_HLT")
-            col.operator("shapedeform.clear_bake", icon="TRASH")
-        else:
+        if not is_baked(obj):
             col.operator("shapedeform.bake", icon="REC")
+            return
+        col.label(text="Baked: the keyframes play, the rig waits", icon="KEYFRAME_HLT")
+        if bake.is_out_of_date(obj):
+            col.label(text="Out of date: handles or settings changed since the bake", icon="ERROR")
+        row = col.row(align=True)
+        row.operator("shapedeform.bake", text="Bake Again", icon="REC")
+        row.operator("shapedeform.clear_bake", icon="TRASH")
 
 
 def _draw_handles(layout, settings):

@@ -6,6 +6,8 @@ grease-pencil drawing and moves the animator's later ones too; a bake that canno
 changes nothing; outside the range every kind holds the nearest baked frame; the documented
 Python entry point imports."""
 
+from functools import partial
+
 import addon_utils
 import bpy
 import numpy as np
@@ -789,3 +791,94 @@ def test_a_copy_of_a_baked_rig_bakes_into_an_action_of_its_own(addon):
     assert bake_of(copy).action not in (None, original.action)
     assert shapedeform.bake.clear(copy) == 6 and shapedeform.bake.clear(obj) == 6
     assert bake_actions() == set()
+
+
+def test_a_bake_says_it_is_out_of_date_once_what_it_was_made_from_changes(addon):
+    """Re-keyed, moved, driven, added or removed handles, changed pins or settings left the old
+    bake playing and nothing said so; the sidebar offered only Clear Bake. Now, as Blender's
+    physics caches, the sidebar says the bake is out of date under its Baked line and offers
+    Bake Again beside Clear Bake; baking again fits again. The Viewport budget, which a bake
+    does not use, leaves it up to date."""
+    from test_ui_overlay import drawn
+
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    still, keyed = [item.object for item in obj.shapedeform.handles]
+    for kind, x in (("STARCH", -0.5), ("OVERLAP", 0.5)):
+        bpy.context.view_layer.objects.active = obj
+        assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [x, 0.0, 0.0]), kind=kind) == {"FINISHED"}
+    starch, overlap = [item.object for item in obj.shapedeform.handles[2:]]
+    bake = addon.shapedeform_addon.bake
+
+    def key_again():
+        keyed.location.y += 0.8
+        keyed.keyframe_insert("location", frame=6)
+
+    def move():
+        still.location.x += 0.1
+
+    def drive():
+        still.driver_add("rotation_euler", 2).driver.expression = "0.2"
+
+    def add_handle():
+        checks.add_handle(obj, checks.world(obj, [0.0, 0.3, 0.0]))
+
+    def remove_handle():
+        checks.select_only(obj)
+        assert bpy.ops.shapedeform.remove_handle(handle=obj.shapedeform.handles[-1].object.name) == {"FINISHED"}
+
+    settings = [(obj.shapedeform, "weight_edge", 2.0), (obj.shapedeform, "preserve_area", True),
+                (obj.shapedeform, "render_iterations", 12), (starch.shapedeform, "stiffness", 3.0),
+                (overlap.shapedeform, "in_front", -1.0), (overlap.shapedeform, "extent", 0.5)]
+    changes = [key_again, move, drive, add_handle, remove_handle] + [partial(setattr, *s) for s in settings]
+    assert bake.bake_objects([obj], 1, 6) == [obj]
+    checks.select_only(obj)
+    for change in changes:
+        assert not bake.is_out_of_date(obj)
+        change()
+        bpy.context.view_layer.update()
+        assert bake.is_out_of_date(obj), change
+        checks.select_only(obj)
+        labels = drawn(bpy.context, labels=True)
+        assert labels.index("Out of date: handles or settings changed since the bake") == \
+            labels.index("Baked: the keyframes play, the rig waits") + 1
+        assert {"shapedeform.bake", "shapedeform.clear_bake"} <= set(drawn(bpy.context))
+        assert bake.bake_objects([obj], 1, 6) == [obj]
+    assert not any(label.startswith("Out of date") for label in drawn(bpy.context, labels=True))
+    obj.shapedeform.iterations = 3
+    assert not bake.is_out_of_date(obj)
+
+
+def test_an_unchanged_bake_stays_up_to_date_over_frames_undo_saving_and_the_command_line(addon, tmp_path):
+    """What the bake was made from is kept in the file: frames, undo and reopening leave an
+    unchanged bake up to date, a bake made on the command line too; a bake from a file saved
+    before bakes kept it is never said to be out of date."""
+    shapedeform = addon.shapedeform_addon
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    for frame in (3, 6, 1, 9, 0):
+        bpy.context.scene.frame_set(frame)
+        assert not shapedeform.bake.is_out_of_date(obj), frame
+    bpy.ops.ed.undo_push(message="baked")
+    obj.shapedeform.handles[0].object.location.x += 0.2
+    bpy.ops.ed.undo_push(message="moved")
+    assert shapedeform.bake.is_out_of_date(obj)
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    assert not shapedeform.bake.is_out_of_date(bpy.data.objects["Grid"])
+
+    path = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["Grid"]
+    assert shapedeform.rig_format.is_baked(obj) and not shapedeform.bake.is_out_of_date(obj)
+    assert shapedeform.cli.main(["bake", "--frames", "2-5"]) == 0
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["Grid"]
+    assert list(obj.shapedeform["baked"]) == [2, 5, 1] and not shapedeform.bake.is_out_of_date(obj)
+    obj.shapedeform.handles[0].object.location.x += 0.2
+    assert shapedeform.bake.is_out_of_date(obj)
+
+    del obj.shapedeform.cage.data.shape_keys[shapedeform.rig_format.BAKE_SOURCE]  # as saved before
+    assert shapedeform.rig_format.is_baked(obj) and not shapedeform.bake.is_out_of_date(obj)
