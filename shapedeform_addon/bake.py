@@ -481,6 +481,15 @@ def bake_objects(objects, frame_start, frame_end, step=1, *, scene=None, progres
 
 # -- operator ---------------------------------------------------------------------------------
 
+def _frames_by_default(scene):
+    """The first and last frame a bake from the interface covers when none are given: the
+    scene's preview range while it is on, as Blender's Bake Action takes it (the animator is
+    working on those frames), else its frame range."""
+    if scene.use_preview_range:
+        return scene.frame_preview_start, scene.frame_preview_end
+    return scene.frame_start, scene.frame_end
+
+
 def _targets(context):
     """Selected bound objects, plus the rig of the active object or of an active handle."""
     found = []
@@ -498,12 +507,14 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
     bl_label = "Bake Deformation"
     bl_options = {"REGISTER", "UNDO"}
 
-    # Not remembered between bakes: unset, they are the scene's frame range at the time.
-    # Soft limits only: a hard one would clamp a range past Blender's frames and bake what is
-    # left without a word; execute refuses it by name.
-    frame_start: IntProperty(name="Start", description="First frame to bake (default: the scene's)", default=1,
+    # Not remembered between bakes: unset, they are the scene's at the time (its preview range
+    # while on: _frames_by_default). Soft limits only: a hard one would clamp a range past
+    # Blender's frames and bake what is left without a word; execute refuses it by name.
+    frame_start: IntProperty(name="Start", description="First frame to bake (default: the scene's, or its preview "
+                                                       "range's while that is on)", default=1,
                              soft_min=FIRST_FRAME, soft_max=LAST_FRAME, options={"SKIP_SAVE"})
-    frame_end: IntProperty(name="End", description="Last frame to bake (default: the scene's)", default=250,
+    frame_end: IntProperty(name="End", description="Last frame to bake (default: the scene's, or its preview "
+                                                   "range's while that is on)", default=250,
                            soft_min=FIRST_FRAME, soft_max=LAST_FRAME, options={"SKIP_SAVE"})
     step: IntProperty(name="Step", description="Bake every n-th frame", default=1, min=1)
 
@@ -512,10 +523,11 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
         return poll_reason(cls, "" if _targets(context) else "Select bound objects to bake their deformation")
 
     def _start(self, context):
+        frame_start, frame_end = _frames_by_default(context.scene)
         if not self.properties.is_property_set("frame_start"):
-            self.frame_start = context.scene.frame_start
+            self.frame_start = frame_start
         if not self.properties.is_property_set("frame_end"):
-            self.frame_end = context.scene.frame_end
+            self.frame_end = frame_end
         try:
             return Bake(_targets(context), frame_list(self.frame_start, self.frame_end, self.step),
                         self.step, context.scene)

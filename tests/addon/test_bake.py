@@ -882,3 +882,29 @@ def test_an_unchanged_bake_stays_up_to_date_over_frames_undo_saving_and_the_comm
 
     del obj.shapedeform.cage.data.shape_keys[shapedeform.rig_format.BAKE_SOURCE]  # as saved before
     assert shapedeform.rig_format.is_baked(obj) and not shapedeform.bake.is_out_of_date(obj)
+
+
+def test_the_bake_operator_bakes_the_preview_range_while_it_is_on(addon, tmp_path):
+    """Blender's Bake Action bakes the preview range while it is on; Bake Deformation baked the
+    scene's frame range (1-250 for a preview range of 2-5). Frames given still win, and the
+    command line bakes the scene's frame range, the one that renders."""
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 8
+    scene.use_preview_range = True
+    scene.frame_preview_start, scene.frame_preview_end = 2, 5
+    checks.select_only(obj)
+    for given, baked in [({}, [2, 5]), ({"frame_start": 1, "frame_end": 6}, [1, 6]), ({"frame_end": 3}, [2, 3])]:
+        assert bpy.ops.shapedeform.bake(**given) == {"FINISHED"}
+        assert list(obj.shapedeform["baked"])[:2] == baked, given
+    scene.use_preview_range = False
+    assert bpy.ops.shapedeform.bake() == {"FINISHED"}
+    assert list(obj.shapedeform["baked"])[:2] == [1, 8]
+
+    scene.use_preview_range = True
+    path = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    assert addon.shapedeform_addon.cli.main(["bake"]) == 0
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert list(bpy.data.objects["Grid"].shapedeform["baked"])[:2] == [1, 8]
