@@ -460,13 +460,12 @@ def settle_duplicate(obj):
     driver that keeps the handles evaluated fit what it became:
     ``rig_format.keep_handles_evaluated``.)"""
     if obj.library is None and rig_format.is_follower(obj):
-        copied_from = obj.shapedeform.cage.shapedeform.rig
         if not rig_format.modifiers_of(obj):  # converted (Keep Original), its modifier applied: frozen
             release_follower(obj)
             return
         if not adopt_duplicated(obj):
             follow(obj)
-        image_plane.own_quad(obj, copied_from)
+        image_plane.own_quad(obj)
     elif obj.library is None and rig_format.is_owner(obj):
         own_cage_mesh(obj)
 

@@ -19,6 +19,10 @@ On the bound object (the rig's *owner*), ``obj.shapedeform``:
     sharing their data may rig different layers; "" when it deforms them all); for an image
     plane ``cutout_points``, the cut-out's vertices as bind made them (unbind tells from them
     whether the cut-out was edited).
+On an image plane's quad (kept as the bound plane's ``original_data``), ``shapedeform_cutout``:
+    the names of the cut-outs it is kept for (:func:`quad_cutouts`), those Bind made of it and
+    shared by linked duplicates; a duplicate showing another cut-out gets a quad of its own
+    (:func:`.sources.image_plane.own_quad`).
 On a curve's data, ``shapedeform_path_off``: Bind turned its Path Animation off (nothing rode
     the path, and the rig's children would have; :func:`turn_path_off`); Unbind turns it on
     again (:func:`turn_path_back_on`).
@@ -66,7 +70,7 @@ BAKE_SOURCE = "shapedeform_baked_from"  # on a bake's Key: a digest of what it w
 RIGGED_KEY = "rigged_attribute"
 CUTOUT_KEY = "cutout_points"  # on an image plane's settings: the cut-out's vertices as bind made them
 CUTOUT_ATTRIBUTES = "cutout_attributes"  # ... and its attributes (UV maps with a digest of their UVs)
-QUAD_STAMP = "shapedeform_cutout"  # on an image plane's rest quad: the cut-out it was kept for
+QUAD_STAMP = "shapedeform_cutout"  # on an image plane's rest quad: the cut-outs it is kept for
 HANDLE_INDICES = "indices"  # on a handle's item: the graph points it owns
 HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when it was added
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
@@ -121,6 +125,30 @@ def clear(settings):
     """Drop everything this module keeps on an owner's ``settings`` as ID properties (unbind)."""
     for key in GRAPH_KEYS + (BAKED, RIGGED_KEY, CUTOUT_KEY, CUTOUT_ATTRIBUTES) + LEGACY_KEYS:
         settings.pop(key, None)
+
+
+def quad_cutouts(quad):
+    """The names of the cut-outs an image plane's rest quad is kept for (list of str).
+
+    Names, not pointers: a pointer would be a user of the cut-out, which Blender then will not
+    apply a transform to. Older versions kept one name, a string: a list of one here.
+    """
+    stamp = quad.get(QUAD_STAMP)
+    if stamp is None:
+        return []
+    return [stamp] if isinstance(stamp, str) else [str(name) for name in stamp]
+
+
+def stamp_quad(quad, names):
+    """Keep ``names`` (the cut-outs' names) as those ``quad`` is kept for; the stamp goes when
+    there are none. Written only when it changes; a library's quad is left as its file has it."""
+    names = list(dict.fromkeys(names))
+    if quad.library is not None or names == quad_cutouts(quad):
+        return
+    if names:
+        quad[QUAD_STAMP] = names
+    else:
+        quad.pop(QUAD_STAMP, None)
 
 
 def forget(obj):

@@ -21,7 +21,7 @@ from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane, transform_points
 from ...solver.rigging.silhouette import image_cutout, map_by_triangles
 from .. import rig_format
-from ..rig_format import CUTOUT_ATTRIBUTES, CUTOUT_KEY, QUAD_STAMP
+from ..rig_format import CUTOUT_ATTRIBUTES, CUTOUT_KEY
 from ..errors import RigError
 from . import mesh as mesh_source
 from .prepared import Prepared
@@ -244,10 +244,11 @@ def prepare(obj, settings):
             cutout.materials.append(material)
         cutout.polygons.foreach_set("material_index", np.full(len(cutout.polygons), material_index, np.int32))
         cutout.update()
+        # Added to the cut-outs the quad is kept for, which other planes bound on it (linked
+        # duplicates bound one by one) keep: a copy's cut-out has another name, and needs a quad
+        # of its own (own_quad).
+        rig_format.stamp_quad(quad, [*_cutouts_in_use(quad, but=o), cutout.name])
         o.shapedeform.original_data = quad
-        # A copy's cut-out has another name: it needs a quad of its own (own_quad). (A pointer
-        # would be a user of the cut-out, which Blender then will not apply a transform to.)
-        quad[QUAD_STAMP] = cutout.name
         # To tell, at unbind, whether it was edited.
         o.shapedeform[CUTOUT_KEY] = vertices.astype(np.float32).ravel()
         o.shapedeform[CUTOUT_ATTRIBUTES] = _attribute_digests(cutout)
@@ -272,39 +273,50 @@ def _reading_notes(obj, node, changed):
     return notes
 
 
-def own_quad(obj, copied_from):
+def own_quad(obj):
     """Give a duplicate of a bound image plane a quad of its own where its cut-out is its own;
     True when it did.
 
     Shift+D copies the cut-out but not the quad, which only the rig's settings point at: the
     copy then shared its rest quad with the plane it was copied from (the rig's owner or a
     follower of it), and an edit of either's quad after Unbind changed the other's. The quad
-    names the cut-out it was kept for (``QUAD_STAMP``), which a copy's cut-out is not; a linked
-    duplicate (Alt+D) shares the cut-out, so it shares the quad too. (A cut-out renamed by hand
-    gets a copy of its quad too, which changes nothing it shows.)
+    names the cut-outs it is kept for (``rig_format.quad_cutouts``: each plane bound on it adds
+    its own), which a copy's cut-out is not; a linked duplicate (Alt+D) shares the cut-out, so
+    it shares the quad too. A cut-out the quad does not name is taken as the quad's where every
+    plane bound on that quad shows it (a cut-out renamed, one bound by a version that did not
+    name it, a copy whose original is gone); where another plane shows another cut-out, the
+    planes showing this one get a copy of the quad (which changes nothing they show).
 
     Parameters
     ----------
     obj : bpy.types.Object
         A follower, or a duplicate just given a rig of its own.
-    copied_from : bpy.types.Object
-        The owner of the rig it was duplicated with: its cut-out keeps a quad bound by a version
-        that did not name the cut-out.
     """
     quad = obj.shapedeform.original_data
-    if quad is None:
+    if quad is None or obj.data.name in rig_format.quad_cutouts(quad):
         return False
-    kept_for = quad.get(QUAD_STAMP)
-    if kept_for is None:
-        kept_for = (copied_from.data if quad == copied_from.shapedeform.original_data else obj.data).name
-        if quad.library is None:  # a library's is left as the library has it
-            quad[QUAD_STAMP] = kept_for
-    if kept_for == obj.data.name:
+    bound_on_quad = _planes_on(quad)
+    sharing = [plane for plane in bound_on_quad if plane.data == obj.data]  # itself and its linked duplicates
+    if len(sharing) == len(bound_on_quad):
+        rig_format.stamp_quad(quad, [obj.data.name])
         return False
     own = quad.copy()
-    own[QUAD_STAMP] = obj.data.name
-    obj.shapedeform.original_data = own
+    rig_format.stamp_quad(own, [obj.data.name])
+    for plane in sharing:
+        plane.shapedeform.original_data = own
     return True
+
+
+def _planes_on(quad, but=None):
+    """The objects bound on ``quad`` (keeping it to give back), but ``but``."""
+    return [obj for obj in bpy.data.objects if obj != but and obj.shapedeform.original_data == quad]
+
+
+def _cutouts_in_use(quad, but):
+    """The names of the cut-outs ``quad`` is kept for that a plane bound on it, but ``but``,
+    still shows: a name none shows (its planes unbound, or it was renamed) goes."""
+    shown = {plane.data.name for plane in _planes_on(quad, but) if plane.data is not None}
+    return [name for name in rig_format.quad_cutouts(quad) if name in shown]
 
 
 def unbind(obj):
@@ -320,7 +332,7 @@ def unbind(obj):
         # mesh's would be (the status bar said so); the quad is not given back over it.
         obj.shapedeform.pop(CUTOUT_KEY, None)
         obj.shapedeform.pop(CUTOUT_ATTRIBUTES, None)
-        original.pop(QUAD_STAMP, None)
+        rig_format.stamp_quad(original, _cutouts_in_use(original, but=obj))
         obj.shapedeform.original_data = None
         if original.users == 0:  # not given back, and no other plane shows or keeps it
             bpy.data.meshes.remove(original)
@@ -338,7 +350,8 @@ def unbind(obj):
         lost.append("the materials given to its cut-out (the picture's quad keeps its own; Undo brings them back)")
     obj.shapedeform.pop(CUTOUT_KEY, None)
     obj.shapedeform.pop(CUTOUT_ATTRIBUTES, None)
-    original.pop(QUAD_STAMP, None)
+    # Its cut-out's name stays while another plane bound on the quad shows it (an Alt+D copy).
+    rig_format.stamp_quad(original, _cutouts_in_use(original, but=obj))
     obj.data = original
     obj.shapedeform.original_data = None
     if not np.allclose(applied, np.eye(4), rtol=0.0, atol=1e-6):

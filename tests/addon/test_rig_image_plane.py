@@ -422,6 +422,78 @@ def test_a_follower_unbound_before_its_owner_gets_its_quad_back(addon, tmp_path)
     np.testing.assert_array_equal(checks.mesh_points(obj), quad)
 
 
+def duplicate(obj, linked):
+    """Shift+D (or Alt+D, ``linked``) of ``obj`` alone, settled as the viewport settles it; the copy."""
+    checks.select_only(obj)
+    assert bpy.ops.object.duplicate(linked=linked) == {"FINISHED"}
+    bpy.context.view_layer.update()
+    return bpy.context.active_object
+
+
+def bind(obj):
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+
+
+def unbind(obj):
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+
+
+def test_a_linked_duplicate_of_one_of_two_planes_bound_on_one_quad_shares_it(addon, tmp_path):
+    """Two planes sharing one quad (Alt+D before Bind), each bound, and an Alt+D copy of the
+    first (it follows the first's rig, sharing its cut-out): after Unbind all three show the one
+    quad, which keeps no stamp. (The quad named one cut-out, the second's once it was bound, so
+    the copy got a quad of its own, 'picture.001'; and the first plane's Unbind dropped the name
+    while the second was still bound on the quad.)"""
+    stamp = addon.shapedeform_addon.rig_format.QUAD_STAMP
+    first, _ = import_picture(tmp_path)
+    quad = first.data
+    second = duplicate(first, linked=True)
+    second.location.x += 2.5
+    bind(first)
+    bind(second)
+    copy = duplicate(first, linked=True)
+    assert copy.data == first.data and copy.shapedeform.original_data == quad, \
+        f"the Alt+D copy keeps '{copy.shapedeform.original_data.name}', not its original's quad"
+    unbind(first)  # releases the copy, which follows its rig
+    assert stamp in quad, "the quad forgot the second plane's cut-out while it is still bound"
+    unbind(second)
+    assert first.data == second.data == copy.data == quad
+    assert stamp not in quad and len(bpy.data.meshes) == 1, [m.name for m in bpy.data.meshes]
+
+
+def test_a_renamed_cut_out_keeps_sharing_its_quad(addon, tmp_path):
+    """A bound plane's cut-out renamed by hand, shared with an Alt+D copy: the copy still shares
+    the plane's quad (it got a copy, as a Shift+D copy does), and Unbind gives both the one quad."""
+    obj, _ = import_picture(tmp_path)
+    quad = obj.data
+    bind(obj)
+    copy = duplicate(obj, linked=True)
+    obj.data.name = "Renamed"
+    copy.location.x += 2.5
+    bpy.context.view_layer.update()
+    assert copy.shapedeform.original_data == quad
+    unbind(obj)
+    assert obj.data == copy.data == quad and len(bpy.data.meshes) == 1
+
+
+@pytest.mark.parametrize("linked", [True, False], ids=["Alt+D", "Shift+D"])
+def test_a_quad_stamped_by_an_older_version_is_read(addon, tmp_path, linked):
+    """A quad bound by a version that named one cut-out (a string): a linked duplicate of its
+    plane shares it, a copy gets a quad of its own, and Unbind leaves it with no stamp."""
+    stamp = addon.shapedeform_addon.rig_format.QUAD_STAMP
+    obj, _ = import_picture(tmp_path)
+    quad = obj.data
+    bind(obj)
+    quad[stamp] = obj.data.name
+    copy = duplicate(obj, linked)
+    assert (copy.shapedeform.original_data == quad) == linked
+    unbind(obj)
+    assert (copy.data == quad) == linked and obj.data == quad and stamp not in quad
+    assert stamp not in copy.data
+
+
 @pytest.mark.parametrize("read_through", ["render-active map", "UV Map node", "UV Map node and Mapping",
                                           "UV Map node in a group"])
 def test_every_uv_map_is_kept_and_the_picture_is_cut_out_through_the_one_it_is_read_by(addon, tmp_path,
