@@ -7,7 +7,8 @@ UV map it is read by (a UV Map node's, else the render-active one); each of the 
 goes onto the cut-out through the quad's own two triangles, each mapped affinely as Blender
 interpolates a face's UVs, so every point shows the texel it showed on the quad and the picture
 looks the same before posing. The quad's mesh is kept (``obj.shapedeform.original_data``) and
-given back on unbind, untouched; the cut-out is then deleted.
+given back on unbind, untouched but for the materials given to the cut-out (:func:`unbind`); the
+cut-out is then deleted.
 """
 
 import hashlib
@@ -285,7 +286,9 @@ def own_quad(obj):
     it shares the quad too. A cut-out the quad does not name is taken as the quad's where every
     plane bound on that quad shows it (a cut-out renamed, one bound by a version that did not
     name it, a copy whose original is gone); where another plane shows another cut-out, the
-    planes showing this one get a copy of the quad (which changes nothing they show).
+    planes showing this one get a copy of the quad, with the materials of the cut-out's slots
+    where it has as many as the quad (Shift+D gives a copy copies of them with Preferences >
+    Editing > Duplicate Data > Material, as it gives any plane), so Unbind gives them back.
 
     Parameters
     ----------
@@ -301,6 +304,7 @@ def own_quad(obj):
         rig_format.stamp_quad(quad, [obj.data.name])
         return False
     own = quad.copy()
+    _take_materials(own, obj.data)
     rig_format.stamp_quad(own, [obj.data.name])
     for plane in sharing:
         plane.shapedeform.original_data = own
@@ -322,8 +326,9 @@ def _cutouts_in_use(quad, but):
 def unbind(obj):
     """Give the quad back, with any transform applied to the cut-out since binding (Apply
     Rotation & Scale) applied to it too, so the picture stays where it is; unless the rig's
-    modifier was applied or the object converted, which made the pose its own. Call while the
-    rig's cage exists."""
+    modifier was applied or the object converted, which made the pose its own; and with the
+    materials given to the cut-out, where no other plane shows the quad with others. Call while
+    the rig's cage exists."""
     original = obj.shapedeform.original_data
     if original is None:
         return []
@@ -347,7 +352,7 @@ def unbind(obj):
     if cutout.shape_keys is not None:
         lost.append("the shape keys of its cut-out (the picture's quad has none; Undo brings them back)")
     if list(cutout.materials) != list(original.materials):
-        lost.append("the materials given to its cut-out (the picture's quad keeps its own; Undo brings them back)")
+        lost += _give_materials_back(obj, cutout, original)
     obj.shapedeform.pop(CUTOUT_KEY, None)
     obj.shapedeform.pop(CUTOUT_ATTRIBUTES, None)
     # Its cut-out's name stays while another plane bound on the quad shows it (an Alt+D copy).
@@ -362,6 +367,34 @@ def unbind(obj):
     if cutout.users == 0:
         bpy.data.meshes.remove(cutout)
     return lost
+
+
+def _take_materials(quad, cutout):
+    """Put the materials of ``cutout``'s slots in ``quad``'s, where it has as many."""
+    if len(quad.materials) == len(cutout.materials):
+        for slot, material in enumerate(cutout.materials):
+            quad.materials[slot] = material
+
+
+def _give_materials_back(obj, cutout, quad):
+    """Carry the materials given to ``obj``'s cut-out while bound (made single-user, or another
+    chosen) onto its quad, as the quad is given back; what Unbind drops instead, as phrases.
+
+    They stay the cut-out's alone where the quad has another number of slots (the face shows
+    one by its index), or where another object shows the quad, or a cut-out of it, with other
+    materials: it would change what that object shows.
+    """
+    if len(quad.materials) != len(cutout.materials):
+        return ["the materials given to its cut-out (slots added or removed there: the picture's quad keeps its "
+                "own; Undo brings them back)"]
+    others = [other.name for other in bpy.data.objects
+              if other != obj and (other.data == quad or other.shapedeform.original_data == quad)
+              and list(other.data.materials) != list(cutout.materials)]
+    if others:
+        return [f"the materials given to its cut-out (the picture's quad keeps its own, which '{others[0]}' shows "
+                "too; Undo brings them back)"]
+    _take_materials(quad, cutout)
+    return []
 
 
 def _as_bound(obj, cutout, applied):

@@ -494,6 +494,69 @@ def test_a_quad_stamped_by_an_older_version_is_read(addon, tmp_path, linked):
     assert stamp not in copy.data
 
 
+@pytest.mark.parametrize("unbound", ["original", "copy"])
+def test_a_copy_given_its_own_materials_by_shift_d_keeps_them_on_unbind(addon, tmp_path, unbound):
+    """With Duplicate Data > Material on, Shift+D of a bound plane gives the copy a copy of its
+    material; Unbind (of the original, which releases the copy, or of the copy) gives the copy a
+    quad with that material, saying nothing (its quad was a copy of the original's, with the
+    original's material: Unbind said it could not give back the copy's, which was left with no
+    user, lost on saving)."""
+    binding = addon.shapedeform_addon.binding
+    preferences = bpy.context.preferences.edit
+    was = preferences.use_duplicate_material
+    preferences.use_duplicate_material = True
+    try:
+        obj, _ = import_picture(tmp_path)
+        material = obj.data.materials[0]
+        bind(obj)
+        copy = duplicate(obj, linked=False)
+    finally:
+        preferences.use_duplicate_material = was
+    copy_material = copy.data.materials[0]
+    assert copy_material not in (None, material)
+    lost = binding.unbind(obj if unbound == "original" else copy)
+    assert lost == []
+    assert len(copy.data.vertices) == 4 and copy.data.materials[:] == [copy_material]
+    assert copy_material.users == 1
+    if unbound == "copy":
+        assert obj.shapedeform.is_bound
+        binding.unbind(obj)
+    assert obj.data.materials[:] == [material]
+
+
+@pytest.mark.parametrize("quad_shown_by", ["no other plane", "an unbound plane", "a bound plane",
+                                           "a linked duplicate"])
+def test_a_material_given_to_the_cut_out_goes_onto_the_quad_no_other_plane_shows(addon, tmp_path, quad_shown_by):
+    """A bound plane's cut-out given a material of its own (the material's user-count button):
+    Unbind puts it on the quad, unless another plane shows that quad (unbound, or bound on it
+    and showing its own cut-out) with its material, which it keeps; Unbind then says the
+    cut-out's is dropped. A linked duplicate (Alt+D) following the rig shows the same
+    material. (Unbind always dropped it.)"""
+    binding = addon.shapedeform_addon.binding
+    obj, _ = import_picture(tmp_path)
+    quad = obj.data
+    material = quad.materials[0]
+    other = duplicate(obj, linked=True) if quad_shown_by in ("an unbound plane", "a bound plane") else None
+    if other is not None:
+        other.location.x += 2.5
+    bind(obj)
+    if quad_shown_by == "a bound plane":
+        bind(other)
+    elif quad_shown_by == "a linked duplicate":
+        other = duplicate(obj, linked=True)
+    own = material.copy()
+    obj.data.materials[0] = own
+    lost = binding.unbind(obj)
+    assert obj.data == quad
+    if quad_shown_by in ("an unbound plane", "a bound plane"):
+        assert len(lost) == 1 and "materials given to its cut-out" in lost[0] and f"'{other.name}'" in lost[0]
+        assert quad.materials[:] == [material]
+    else:
+        assert lost == [] and quad.materials[:] == [own]
+    if quad_shown_by == "a linked duplicate":
+        assert other.data == quad
+
+
 @pytest.mark.parametrize("read_through", ["render-active map", "UV Map node", "UV Map node and Mapping",
                                           "UV Map node in a group"])
 def test_every_uv_map_is_kept_and_the_picture_is_cut_out_through_the_one_it_is_read_by(addon, tmp_path,
