@@ -52,12 +52,16 @@ class DragState:
         The Empty being moved.
     pinned : bool
         ``handle`` is a pin made for this drag (removed on cancel).
+    active_handle : int
+        The handle list's active item before the grab (a pin made for it becomes the active
+        one; cancelling gives the list back as it was).
     """
 
-    def __init__(self, obj, handle, pinned, plane, hit, collection_was_missing):
+    def __init__(self, obj, handle, pinned, plane, hit, collection_was_missing, active_handle):
         self.obj = obj
         self.handle = handle
         self.pinned = pinned
+        self.active_handle = active_handle
         self.plane_origin, self.plane_normal = plane
         self.start_hit = hit
         self.start_location = tuple(handle.location)  # floats read from float32: restored bit for bit
@@ -109,12 +113,12 @@ def begin(context, obj, ray, pin=False):
         shape = transform_points(rig_format.rig_space(obj), rig.get(obj).shown)
         if len(shape) == 0:
             raise RigError(f"'{obj.name}' has no points to pin")
-        missing = settings.handle_collection is None
+        missing, active = settings.handle_collection is None, settings.active_handle
         # Where the pose overlaps itself, on the part the view shows: the hit lies on the plane,
         # as near a part left there, under the others, as to the one in front.
         handle = handles.add(obj, tuple(in_front(hit, shape, plane[1])), snap=True)
         context.view_layer.update()
-        return DragState(obj, handle, True, plane, hit, missing)
+        return DragState(obj, handle, True, plane, hit, missing, active)
     # A handle deleted in the viewport lingers as an orphan (in no scene): never grab it. Pins
     # pull nothing and ride on the cage: dragging one would only pull it off the shape.
     candidates = [item.object for item in settings.handles
@@ -122,7 +126,7 @@ def begin(context, obj, ray, pin=False):
     if not candidates:
         raise RigError(f"'{obj.name}' has no handles: add one, or Ctrl+click to pin the shape")
     centres = np.array([_matrix(h.matrix_world)[:3, 3] for h in candidates]).reshape(-1, 3)
-    return DragState(obj, candidates[nearest(centres, hit)], False, plane, hit, False)
+    return DragState(obj, candidates[nearest(centres, hit)], False, plane, hit, False, settings.active_handle)
 
 
 def move(context, state, ray):
@@ -206,10 +210,12 @@ def _key_frames(obj):
 
 
 def cancel(context, state):
-    """Put everything back as it was before the grab: handle, pin, and the shape's points."""
+    """Put everything back as it was before the grab: handle, pin, the handle list's active
+    item, and the shape's points."""
     obj = state.obj
     if state.pinned:
         handles.remove(obj, {state.handle})
+        handles.set_active(obj.shapedeform, state.active_handle)
         collection = obj.shapedeform.handle_collection
         if state.collection_was_missing and collection is not None and not collection.all_objects:
             obj.shapedeform.handle_collection = None

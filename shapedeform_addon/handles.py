@@ -209,12 +209,14 @@ def add_all(obj, locations, kind="POSITION", on_rest=False, notes=None, islands=
     they are at."""
     added = []
     islands = np.zeros(len(locations), dtype=np.int64) if islands is None else islands
+    active = obj.shapedeform.active_handle  # each add makes its handle the active item
     try:
         for location, island in zip(locations, islands):
             added.append(add(obj, location, on_rest=on_rest, kind=kind, notes=notes, island=int(island)))
     except RigError as err:
         if added:
             remove(obj, set(added))
+            set_active(obj.shapedeform, active)
         if isinstance(err, NoPointsLeft) and len(locations) > 1:  # say how many fit, and what to do
             raise NoPointsLeft(f"{len(added)} of the {len(locations)} handles asked for fit (each holds "
                                f"{MIN_REGION_POINTS} or more points of the shape); select fewer points. None was "
@@ -578,19 +580,23 @@ def owns(obj, empty):
     return empty is not None and empty.shapedeform.rig == obj.original
 
 
-def remove(obj, empties):
+def remove(obj, empties, deleted_too=False):
     """Drop the handles whose Empties are in ``empties``; returns how many were removed.
 
     Only Empties ``obj`` owns (:func:`owns`) are deleted; an entry pointing at another rig's
     handle is only dropped from the list, so unbinding a duplicate never breaks the original.
-    RigError for a library's rig (nothing is changed).
+    The entries of handles deleted for good (their Empty gone), which the list shows as deleted
+    until the user removes them, go too with ``deleted_too`` (the user's Remove Handle), and
+    only then: taking back a handle the add-on made (a cancelled drag's pin, a refused
+    multi-add) leaves the list as it found it. RigError for a library's rig (nothing is
+    changed).
     """
     rig_format.require_local(obj, "remove handles")
     settings = obj.shapedeform
     removed = 0
     for i in reversed(range(len(settings.handles))):
         empty = settings.handles[i].object
-        if empty is None or empty in empties:
+        if empty in empties or (deleted_too and empty is None):
             settings.handles.remove(i)
             if empty is not None:
                 if owns(obj, empty):
@@ -605,7 +611,7 @@ def remove(obj, empties):
 def remove_all(obj):
     """Remove every handle of ``obj`` and its handle collection, when no other rig uses it."""
     settings = obj.shapedeform
-    remove(obj, {item.object for item in settings.handles})
+    remove(obj, {item.object for item in settings.handles}, deleted_too=True)
     collection = settings.handle_collection
     if collection is not None:
         for leftover in list(collection.objects):

@@ -198,7 +198,7 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
                 return {"CANCELLED"}
         removed = 0
         for owner in owners:
-            removed += handles.remove(owner, set(selected))
+            removed += handles.remove(owner, set(selected), deleted_too=True)
             rig.pose_safely(owner, context.evaluated_depsgraph_get())
         if not removed:  # copies of handles (Shift+D): they name a rig, which does not list them
             self.report({"ERROR"}, f"{', '.join(repr(o.name) for o in selected)}: not in the handle list of "

@@ -129,6 +129,28 @@ def test_ctrl_click_pins_the_shape_and_cancel_removes_the_pin(addon):
     assert len(obj.shapedeform.handles) == 3
 
 
+def test_cancelling_a_ctrl_click_gives_the_handle_list_back(addon):
+    """A handle deleted for good stays listed (as deleted) until the user removes it, and the
+    list's active item stays: cancelling a Ctrl+click dropped the deleted entry with its pin and
+    moved the active item."""
+    obj, left, right = rig_with_two_handles()
+    gone = checks.add_handle(obj, checks.world(obj, [0.0, -0.5, 0.0]))
+    bpy.data.objects.remove(gone)  # deleted for good: its entry names no Empty
+    obj.shapedeform["active_handle"] = 0
+    before = [item.object for item in obj.shapedeform.handles]
+    modal, op, _ = operator_stand_in(addon, obj)
+    middle = np.array(checks.world(obj, [0.0, 0.5, 0.0]))
+    modal(op, bpy.context, event("LEFTMOUSE", "PRESS", middle, ctrl=True))
+    assert op.session.state.pinned and obj.shapedeform.active_handle == 3
+    assert modal(op, bpy.context, event("ESC", "PRESS")) == {"CANCELLED"}
+    assert [item.object for item in obj.shapedeform.handles] == before == [left, right, None]
+    assert obj.shapedeform.active_handle == 0
+    # Removing a handle (the sidebar's "-") still clears the entries of those deleted for good.
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.remove_handle(handle=right.name) == {"FINISHED"}
+    assert [item.object for item in obj.shapedeform.handles] == [left]
+
+
 def test_clicks_that_grab_nothing_explain_why(addon):
     obj = grid()
     bpy.ops.shapedeform.bind()

@@ -126,6 +126,26 @@ def test_more_selected_points_than_handles_fit_says_how_many_fit(addon):
     assert len(obj.shapedeform.handles) == 0
 
 
+def test_a_refused_multi_add_gives_the_handle_list_back(addon):
+    """Refused, the handles added before the one that did not fit are taken back, and only
+    they: the entry of a handle deleted for good stays listed (as deleted) until the user
+    removes it, and the list's active item stays (both went)."""
+    from test_rig_mesh import grid
+
+    obj = grid()
+    left, right, gone = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+    bpy.data.objects.remove(gone)  # deleted for good: its entry names no Empty
+    obj.shapedeform["active_handle"] = 0
+    checks.select_only(obj)
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="SELECT")
+    with pytest.raises(RuntimeError, match="select fewer points"):
+        bpy.ops.shapedeform.add_handle()
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert [item.object for item in obj.shapedeform.handles] == [left, right, None]
+    assert obj.shapedeform.active_handle == 0
+
+
 def test_a_handle_that_does_not_fit_says_what_to_change(addon):
     """Handles until every point of the shape is taken: the next one is refused with what
     gives room (it only said every point already belonged to a handle)."""
