@@ -5,8 +5,9 @@ Binding computes everything first (so a refusal changes nothing), then adds the 
 handle collection and the Shape Deform modifier; the object's own shape is left as it is (an
 image plane's quad is swapped for a cut-out of its picture, kept and given back on unbind; a
 mesh in several islands gets its vertices' islands, removed on unbind; a curve whose path
-nothing rides has its Path Animation turned off, turned on again on unbind). Unbinding releases
-the duplicates that follow the rig first.
+nothing rides has its Path Animation turned off, turned on again on unbind). Binding turns its
+scenes' Lock Interface on where it was off, turned off again by the unbind that leaves a scene
+no rig. Unbinding releases the duplicates that follow the rig first.
 """
 
 import bpy
@@ -46,7 +47,8 @@ def refusal(obj):
 
 
 def bind(obj):
-    """Rig ``obj``; returns its :class:`rig.Rig` and advice for the user ("" when none).
+    """Rig ``obj``; returns its :class:`rig.Rig`, advice for the user ("" when none), and the
+    scenes whose Render > Lock Interface it turned on (frame handlers pose rigs during renders).
 
     Raises
     ------
@@ -81,13 +83,10 @@ def bind(obj):
     settings.kind = kind
     settings.is_bound = True
     settings.status = ""
-    for scene in obj.users_scene:
-        # Frame handlers pose rigs while a render reads the scene from another thread: lock the
-        # interface during renders (saved in the file, so farm and F12 renders are safe).
-        scene.render.use_lock_interface = True
+    locked = [scene for scene in obj.users_scene if rig_format.lock_interface(scene)]
     rig.forget(obj)
     rig_format.forget_bound()
-    return rig.get(obj), prepared.advice
+    return rig.get(obj), prepared.advice, locked
 
 
 def unbind(obj):
@@ -98,7 +97,7 @@ def unbind(obj):
     (an image plane gets its quad back); the owner's rig is untouched. What Bind changed on data
     that several objects share is given back by the last rig of it to go. A rig made by an
     older version, which wrote poses into the object's data, gets its rest shape back from what
-    that version saved.
+    that version saved. A scene left with no rig gets back the Lock Interface Bind took.
 
     Returns
     -------
@@ -141,4 +140,6 @@ def unbind(obj):
     handles.remove_all(obj)
     rig.forget(obj)
     rig_format.forget_bound()
+    for scene in bpy.data.scenes:  # the one it is in, or any it was bound in and moved out of
+        rig_format.unlock_interface(scene)
     return lost

@@ -35,14 +35,17 @@ class SHAPEDEFORM_OT_bind(bpy.types.Operator):
         obj = context.active_object
         try:
             with _in_object_mode(obj):
-                bound, advice = binding.bind(obj)
+                bound, advice, locked = binding.bind(obj)
         except RigError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
+        # Said because it changes how the interface behaves while rendering, beyond the object.
+        lock = (f"; turned on Render > Lock Interface in {', '.join(repr(s.name) for s in locked)} (rigs pose "
+                "during renders; off again when its last rig is unbound)") if locked else ""
         if advice:
-            self.report({"WARNING"}, f"Bound '{obj.name}' ({bound.graph.n} graph points); {advice}")
+            self.report({"WARNING"}, f"Bound '{obj.name}' ({bound.graph.n} graph points); {advice}{lock}")
         else:
-            self.report({"INFO"}, f"Bound '{obj.name}': {bound.graph.n} graph points")
+            self.report({"INFO"}, f"Bound '{obj.name}': {bound.graph.n} graph points{lock}")
         return {"FINISHED"}
 
 

@@ -26,6 +26,9 @@ On an image plane's quad (kept as the bound plane's ``original_data``), ``shaped
 On a curve's data, ``shapedeform_path_off``: Bind turned its Path Animation off (nothing rode
     the path, and the rig's children would have; :func:`turn_path_off`); Unbind turns it on
     again (:func:`turn_path_back_on`).
+On a scene, ``shapedeform_lock_interface``: Bind turned its Render > Lock Interface on (frame
+    handlers pose rigs while a render reads the scene: :func:`lock_interface`); the Unbind that
+    leaves the scene no rig turns it off again (:func:`unlock_interface`).
 The cage, a mesh object parented to the owner (or, on a curve whose Path Animation stayed on,
     copying its transform: :func:`follows_by_constraint`) and hidden:
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
@@ -76,6 +79,7 @@ HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
 CAGE_STAMP = "shapedeform_cage"  # on a cage's mesh: the owner's cage object it belongs to
 PATH_TURNED_OFF = "shapedeform_path_off"  # on a curve's data: Bind turned its Path Animation off
+INTERFACE_LOCKED = "shapedeform_lock_interface"  # on a scene: Bind turned its Lock Interface on
 UNSETTLED = "shapedeform_unsettled"  # on a cage's mesh: its pose is a Viewport solve that stopped short
 # On a rig's owner and followers: the setting a driver reading its handles' transforms and its
 # pins' keyable amounts writes (:func:`keep_handles_evaluated`); inside the extension's settings,
@@ -307,6 +311,25 @@ def turn_path_back_on(curve):
     turned it off, and drop the mark."""
     if curve.pop(PATH_TURNED_OFF, False):
         curve.use_path = True
+
+
+def lock_interface(scene):
+    """Turn Render > Lock Interface on in ``scene``, whose frame handlers pose rigs while a
+    render reads the scene from another thread (saved in the file, so farm and F12 renders are
+    safe), marking that Bind did; a lock the user turned on is left theirs. True when it did."""
+    if scene.render.use_lock_interface:
+        return False
+    scene.render.use_lock_interface = True
+    scene[INTERFACE_LOCKED] = True
+    return True
+
+
+def unlock_interface(scene):
+    """Turn ``scene``'s Lock Interface off again where :func:`lock_interface` turned it on and
+    the scene shows no rig any more (:func:`owners`), and drop the mark."""
+    if scene.library is None and scene.get(INTERFACE_LOCKED) and not owners(scene):
+        del scene[INTERFACE_LOCKED]
+        scene.render.use_lock_interface = False
 
 
 def follows_by_constraint(obj):

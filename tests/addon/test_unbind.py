@@ -631,3 +631,27 @@ def test_unbinding_a_linked_duplicates_own_rig_leaves_the_originals_in_their_dat
         assert checks.evaluated_drawing_points(original, "Fills").tobytes() == fills.tobytes()
     unbind(original)
     rigged.assert_given_back(original)
+
+
+def test_the_last_unbind_of_a_scene_turns_lock_interface_off_again(addon):
+    """Bind turns Render > Lock Interface on (frame handlers pose rigs during renders); it
+    stayed on after every rig was unbound. Off again with the scene's last rig, and a lock the
+    user had turned on stays."""
+    scene = bpy.context.scene
+    scene.render.use_lock_interface = False
+    first, second = grid("First"), grid("Second")
+    for obj in (first, second):
+        checks.select_only(obj)
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+        assert scene.render.use_lock_interface
+    unbind(first)
+    assert scene.render.use_lock_interface  # Second's renders still pose it
+    unbind(second)
+    assert not scene.render.use_lock_interface
+    assert not any(key.startswith("shapedeform") for key in scene.keys())  # the mark went with it
+
+    scene.render.use_lock_interface = True  # the user's own
+    checks.select_only(first)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    unbind(first)
+    assert scene.render.use_lock_interface
