@@ -295,6 +295,62 @@ def test_auto_keying_keys_a_drag_as_blender_keys_a_move(addon, setting, keying_p
     assert right.location.y - dropped[1] == pytest.approx(left.location.y - dropped[0], abs=1e-5)
 
 
+def keyed_in_groups(obj):
+    """{(data path, index, F-Curve group): [key frames]} of ``obj``'s action."""
+    animation = obj.animation_data
+    bag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
+    return {(c.data_path, c.array_index, c.group.name if c.group else ""):
+            [round(k.co[0], 4) for k in c.keyframe_points] for c in bag.fcurves}
+
+
+def no_viewport_anywhere():
+    for window in bpy.context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D":
+                area.type = "PROPERTIES"
+
+
+@pytest.mark.parametrize("keying_set", ["the user's", "built-in"])
+@pytest.mark.parametrize("where", ["a script", "no 3D viewport anywhere"])
+def test_auto_keying_through_the_active_keying_set_outside_a_viewport(addon, keying_set, where):
+    """The drag's functions are for scripts too: with Only Active Keying Set on, confirm()
+    raised (Blender's keying operator wants an area). Keyed as Blender keys through the set: a
+    set of the user's keys its paths (not another set's), a built-in one what it keys on the
+    handle, both in the groups Blender's operator makes."""
+    obj, left, right = rig_with_two_handles()
+    other = bpy.data.objects.new("Other", None)
+    bpy.context.scene.collection.objects.link(other)
+    scene = bpy.context.scene
+    scene.tool_settings.use_keyframe_insert_auto = True
+    scene.frame_set(4)
+    if keying_set == "the user's":
+        scene.keying_sets.new(name="Others").paths.add(other, "location")
+        own = scene.keying_sets.new(name="Dragged")
+        own.paths.add(right, "location")
+        own.paths.add(left, "location", index=1, group_method="NAMED", group_name="Left Y")
+        scene.tool_settings.use_keyframe_insert_keyingset = True
+        scene.keying_sets.active = own
+        expected = {("location", i, "Dragged"): [4.0] for i in range(3)}
+    else:
+        _keying_set(scene)
+        checks.select_only(left)  # Blender's own keying of the other handle through the set
+        with in_viewport():
+            assert bpy.ops.anim.keyframe_insert_by_name(type=scene.keying_sets_all.active.bl_idname) == {"FINISHED"}
+        expected = keyed_in_groups(left)
+    if where == "no 3D viewport anywhere":
+        no_viewport_anywhere()
+    drag = addon.shapedeform_addon.drag
+    ray = lambda p: (np.array([p[0], p[1], 5.0]), np.array([0.0, 0.0, -1.0]))  # noqa: E731
+    start = np.array(right.matrix_world.translation)
+    state = drag.begin(bpy.context, obj, ray(start))
+    drag.move(bpy.context, state, ray(start + [0.0, 0.2, 0.0]))
+    assert drag.confirm(bpy.context, state) == [right]
+    assert keyed_in_groups(right) == expected
+    assert other.animation_data is None
+    if keying_set == "the user's":  # the set's path on the other handle too, in its own group
+        assert keyed_in_groups(left) == {("location", 1, "Left Y"): [4.0]}
+
+
 def test_undo_after_a_drag_gives_back_the_pose_and_the_rig_keeps_working(addon):
     obj, left, right = rig_with_two_handles()
     before = checks.evaluated_mesh_points(obj).copy()
