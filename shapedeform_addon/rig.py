@@ -25,6 +25,8 @@ depsgraph being posed keeps them (:func:`_animated`): a render's depsgraph holds
 values in its evaluated copies only.
 """
 
+import traceback
+
 import bpy
 import numpy as np
 
@@ -359,17 +361,26 @@ def unsettled(scene, owners=None):
 def pose_safely(obj, depsgraph=None, final=None):
     """:func:`pose`, keeping the last good pose and recording why when it fails.
 
+    The last line of defence of the handlers, which pose every rig of a scene in turn: any
+    error is caught, so one rig that fails leaves the others posed. Errors other than RigError
+    come from saved data that reading it does not expect (an ID property deleted or edited by a
+    script): their traceback is printed, and the status says to bind again.
+
     Returns
     -------
     str
         Empty when it worked, else the reason (also in the owner's ``shapedeform.status``).
     """
+    owner = rig_format.owner_of(obj.original) or obj
     try:
         pose(obj, depsgraph, final)
         message = ""
     except RigError as err:
         message = str(err)
-    owner = rig_format.owner_of(obj.original) or obj
+    except Exception as err:  # nothing was written: pose() writes the cage last, once all went well
+        traceback.print_exc()
+        message = (f"'{owner.name}': its rig's saved data is damaged ({type(err).__name__}: {err}): "
+                   "Unbind and Bind again")
     if not message and not rig_format.modifiers_of(owner):
         message = (f"'{owner.name}' lost its Shape Deform modifier (applied, removed, or converted): "
                    "its handles no longer move it; Unbind removes the rig and keeps the shape")

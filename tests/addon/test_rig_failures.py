@@ -8,7 +8,7 @@ import pytest
 import numpy as np
 
 import rig_checks as checks
-from test_rig_mesh import rig_with_two_handles
+from test_rig_mesh import grid, rig_with_two_handles
 
 
 def test_a_handle_moved_to_nan_keeps_the_last_pose_and_reports(addon):
@@ -155,3 +155,39 @@ def test_the_bake_refuses_a_rig_that_lost_its_modifier(addon):
     obj.modifiers.remove(addon.shapedeform_addon.rig_format.modifiers_of(obj)[0])
     with pytest.raises(addon.shapedeform_addon.errors.RigError, match="lost its Shape Deform modifier"):
         addon.shapedeform_addon.bake.bake_objects([obj], 1, 2)
+
+
+@pytest.mark.parametrize("damage", ["handle offsets deleted", "pin point out of range"])
+@pytest.mark.parametrize("damaged_first", [True, False])
+def test_a_rig_whose_saved_data_is_damaged_says_so_and_the_others_still_pose(addon, damage, damaged_first, capfd):
+    """Saved data damaged by hand (an ID property deleted or edited by a script) raised out of
+    the update handler, which then posed no other rig, and left no status saying why."""
+    rig_format = addon.shapedeform_addon.rig_format
+    made = {}
+    for name in ("Damaged", "Healthy") if damaged_first else ("Healthy", "Damaged"):
+        obj = grid(name)
+        made[name] = (obj, *checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]))
+    damaged, _, hand = made["Damaged"]
+    healthy, _, other_hand = made["Healthy"]
+    if damage == "handle offsets deleted":
+        del damaged.shapedeform.handles[1][rig_format.HANDLE_OFFSETS]
+    else:
+        checks.select_only(damaged)
+        assert bpy.ops.shapedeform.add_handle(location=checks.world(damaged, [0.0, 0.0, 0.0]), kind="OVERLAP") \
+            == {"FINISHED"}
+        damaged.shapedeform.handles[-1][rig_format.PIN_POINT] = 10**6
+    addon.shapedeform_addon.rig.forget()  # as an undo or a reopened file: rigs are read again
+    kept = checks.evaluated_mesh_points(damaged).copy()
+    rest = checks.evaluated_mesh_points(healthy).copy()
+    capfd.readouterr()
+    hand.location.y += 0.3
+    other_hand.location.y += 0.3
+    bpy.context.view_layer.update()
+    assert healthy.shapedeform.status == ""
+    assert (checks.evaluated_mesh_points(healthy)[:, 1] - rest[:, 1]).max() > 0.2  # it posed
+    assert damaged.shapedeform.status.startswith("'Damaged': its rig's saved data is damaged (")
+    assert damaged.shapedeform.status.endswith("): Unbind and Bind again")
+    np.testing.assert_array_equal(checks.evaluated_mesh_points(damaged), kept)  # the last pose, no NaN
+    out, err = capfd.readouterr()
+    assert "Error in bpy.app.handlers" not in out + err  # what Blender prints when a handler raises
+    assert "Traceback" in err  # the damage's own, printed for whoever looks into it
