@@ -14,7 +14,6 @@ import bpy
 from bpy.app.handlers import persistent
 
 from . import handles, nodes, rig, rig_format
-from .errors import RigError
 from .sources import mesh
 
 # Writing geometry makes Blender evaluate again and call us back: ignore those calls.
@@ -163,7 +162,7 @@ def _reseat_pins(owner):
         return False
     try:
         return handles.reseat_pins(owner)
-    except RigError:  # posing the rig says why it cannot be built
+    except Exception:  # a handler must not raise: posing the rig says why it cannot be built
         return False
 
 

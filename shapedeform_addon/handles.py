@@ -332,7 +332,7 @@ def fit_pin_shapes(obj, rig=None):
         return
     try:
         rig = rig if rig is not None else rigs.get(obj)
-    except RigError:
+    except Exception:  # called from a handler, which must not raise: posing the rig says why
         return
     in_plane = rig_format.rig_space(obj)[:3, :3] @ rig.plane.axes[:2].T
     # The geometric mean of the two scales in the plane: one size for a sphere, which a scale
