@@ -68,13 +68,13 @@ def channelbag(action, slot):
 
 
 def is_animated(block, data_path):
-    """Whether ``block``'s (an ID's) property ``data_path`` is driven, or keyed in an action it
-    plays (active, or in the NLA)."""
+    """Whether any component of ``block``'s (an ID's) property ``data_path`` is driven, or keyed
+    in an action it plays (active, or in the NLA). (``fcurves.find`` reads one index only.)"""
     animation = block.animation_data
-    if animation is not None and animation.drivers.find(data_path) is not None:
+    if animation is not None and any(curve.data_path == data_path for curve in animation.drivers):
         return True
     bags = [channelbag(action, slot) for action, slot in played_actions(animation) if slot is not None]
-    return any(bag is not None and bag.fcurves.find(data_path) is not None for bag in bags)
+    return any(curve.data_path == data_path for bag in bags if bag is not None for curve in bag.fcurves)
 
 
 def modifier_input(modifier, identifier):

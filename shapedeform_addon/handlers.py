@@ -14,6 +14,7 @@ import bpy
 from bpy.app.handlers import persistent
 
 from . import handles, nodes, rig, rig_format
+from .errors import RigError
 from .sources import mesh
 
 # Writing geometry makes Blender evaluate again and call us back: ignore those calls.
@@ -140,8 +141,11 @@ def on_depsgraph_update(scene, depsgraph):
         if owner is None or obj.type != "EMPTY":
             continue
         is_pin = obj.shapedeform.pin_kind != "POSITION"
-        if is_pin and update.is_updated_transform and handles.left_its_point(obj) and _reseat_pins(owner):
-            moved[owner.name] = owner
+        if is_pin and update.is_updated_transform and handles.left_its_point(obj):
+            if not _windowless():
+                _reseat_later()
+            elif _reseat_pins(owner):  # nothing drags it: a script moved it
+                moved[owner.name] = owner
         if owner.name in moved:
             continue  # posed once whatever else of it changed
         # Pins ride on the cage (vertex parents), so their moves come from the pose, and posing
@@ -154,27 +158,40 @@ def on_depsgraph_update(scene, depsgraph):
 
 def _reseat_pins(owner):
     """Bind the pins of ``owner``'s rig that were moved by hand to the points they were left
-    on, once the move is over: while a transform (G, a gizmo) still moves one, a timer waits for
-    it to end. Whether any pin was bound to another point now."""
-    if _transforming():
-        if not bpy.app.timers.is_registered(_reseat_dropped_pins):
-            bpy.app.timers.register(_reseat_dropped_pins, first_interval=REFINE_AFTER)
-        return False
+    on; whether any was bound to another point. A library's rig keeps its pins' points: they
+    go back on them, and the status bar says why."""
     try:
         return handles.reseat_pins(owner)
+    except RigError as err:
+        _report([str(err)])
     except Exception:  # a handler must not raise: posing the rig says why it cannot be built
-        return False
+        pass
+    return False
+
+
+def _reseat_later():
+    """Have the moved pins re-seated once the move is over: once no update has moved them for
+    ``REFINE_AFTER`` seconds and no transform (G, a gizmo) runs. A Location field dragged in
+    the sidebar writes its start value plus the drag at every step, so a pin re-seated at each
+    step would move by every step's sum."""
+    if bpy.app.timers.is_registered(_reseat_dropped_pins):
+        bpy.app.timers.unregister(_reseat_dropped_pins)
+    bpy.app.timers.register(_reseat_dropped_pins, first_interval=REFINE_AFTER)
 
 
 def _reseat_dropped_pins():
-    """Re-seat the scene's pins moved by hand once no transform moves them (a timer); the
-    writes call :func:`on_depsgraph_update`, which poses their rigs."""
+    """Re-seat the file's pins moved by hand (a timer); the writes call
+    :func:`on_depsgraph_update`, which poses their rigs."""
     if _transforming():
         return REFINE_AFTER
-    scene = bpy.context.scene
-    for owner in rig_format.owners(scene) if scene is not None else ():
+    for owner in [obj for obj in rig_format.bound_objects() if rig_format.is_owner(obj)]:
         _reseat_pins(owner)
     return None
+
+
+def _windowless():
+    """Whether Blender runs without windows (a script, a farm), where nothing is dragged."""
+    return bpy.app.background
 
 
 def _transforming():

@@ -295,15 +295,25 @@ def reseat_pins(obj):
     -------
     bool
         Whether any pin moved to another point (the rig is then rebuilt on next use).
+
+    Raises
+    ------
+    RigError
+        The rig is a library's: its pins were put back on their points.
     """
     moved = [item for item in obj.shapedeform.handles
              if rig_format.present(item.object) and rig_format.PIN_POINT in item and left_its_point(item.object)]
-    if not moved or rig_format.local_refusal(obj, "move pins"):
+    if not moved:
         return False
+    refusal = rig_format.local_refusal(obj, "move its pins")
+    if refusal:  # the library keeps which points they ride on: back on theirs
+        for item in moved:
+            item.object.location = (0.0, 0.0, 0.0)
+        raise RigError(refusal)
     rig = rigs.as_shown(obj)
     for item in moved:
         pin = item.object
-        _, rest_centre, triangle = _place(obj, rig, pin.matrix_world.translation)
+        _, rest_centre, triangle = _place(obj, rig, pin.matrix_world.translation, snap=True)
         pieces, piece = _piece(obj, rig.graph, triangle, 0)
         point = _pin_point(rig.graph, rest_centre, pieces, piece)
         item[rig_format.PIN_POINT] = point

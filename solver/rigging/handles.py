@@ -235,6 +235,11 @@ def distance_off(points, triangles, point):
     return float(np.min(np.linalg.norm(starts + along[..., None] * edge - point, axis=-1)))
 
 
+# How far outside a triangle (in barycentric weight) a point still counts as on it: float32
+# rounding of places up to a thousand triangle sizes from the origin stays under it.
+ON_EDGE = 1e-4
+
+
 def _layer_at(posed_points, posed_heights, triangles, point, height):
     """Where the posed shape lies under ``point`` (2,) in the layer nearest ``height`` (the one
     in front where ``height`` is under them all): the containing triangle's index and its
@@ -248,7 +253,9 @@ def _layer_at(posed_points, posed_heights, triangles, point, height):
     w1 = (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / safe
     w2 = (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / safe
     weights = np.stack([1.0 - w1 - w2, w1, w2], axis=1)
-    inside = np.flatnonzero((np.abs(det) > 0.0) & np.all(weights >= -1e-9, axis=1))
+    # On an edge by a hair: a point of one layer's outline, read back from float32 places, is
+    # off its own triangles by rounding while it lies well inside the layer under it.
+    inside = np.flatnonzero((np.abs(det) > 0.0) & np.all(weights >= -ON_EDGE, axis=1))
     if not len(inside):
         return None
     layer_heights = np.einsum("tk,tk->t", weights[inside], np.asarray(posed_heights, dtype=np.float64)[triangles[inside]])

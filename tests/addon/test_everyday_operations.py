@@ -1135,6 +1135,26 @@ def test_make_handles_editable_frees_an_overrides_handles_for_the_interface(addo
     assert not bpy.ops.shapedeform.make_handles_editable.poll()
 
 
+def test_a_pin_of_a_library_override_moved_by_hand_goes_back_on_its_point(addon, tmp_path, quiet):
+    """The library keeps which points an override's pins ride on: moved by hand, its Empty
+    floated 0.54 off the shape while its depth still came from its point. It goes back."""
+    point_key = addon.shapedeform_addon.rig_format.PIN_POINT
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.0, 0.0, 0.0]), kind="OVERLAP") == {"FINISHED"}
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    obj = override_in_a_new_shot(library)
+    item = next(i for i in obj.shapedeform.handles if i.object.shapedeform.pin_kind == "OVERLAP")
+    pin, point = item.object, item[point_key]
+    at = np.array(pin.matrix_world.translation)
+    pin.location = (0.5, 0.2, 0.0)
+    bpy.context.view_layer.update()
+    assert item[point_key] == point and tuple(pin.location) == (0.0, 0.0, 0.0)
+    np.testing.assert_allclose(pin.matrix_world.translation, at, atol=1e-6)
+
+
 def test_clearing_a_library_bake_in_the_shot_lasts_after_reopening(addon, tmp_path, quiet):
     """A character baked in its own file, overridden in a shot, its bake cleared there and its
     handle keyed: after reopening, the rig poses (the library's bake mark came back with the

@@ -735,3 +735,70 @@ def test_a_pin_moved_by_hand_binds_to_the_point_it_is_left_on(addon):
     pin.keyframe_insert("location", frame=10)
     bpy.context.scene.frame_set(10)
     assert item[rig_format.PIN_POINT] == point and tuple(pin.location) == pytest.approx((0.1, 0.0, 0.0))
+
+
+def pinned_figure(location=(0.0, -0.5, 0.0)):
+    """The figure posed with its arm across the torso (frame 10) and an overlap pin added at
+    ``location``: (object, the pin's handle item, its Empty)."""
+    obj, _ = figure()
+    swing_arm_across(obj)
+    bpy.context.scene.frame_set(10)
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.add_handle(location=location, kind="OVERLAP") == {"FINISHED"}
+    item = obj.shapedeform.handles[-1]
+    bpy.context.view_layer.update()
+    return obj, item, item.object
+
+
+@pytest.mark.parametrize("how", ["keyed", "driven"])
+def test_a_pin_whose_location_is_animated_on_one_axis_stays_on_its_point(addon, how):
+    """Only location Y keyed (or driven): the pin is the animator's to move, on its point. Only
+    X was looked at, so the pin was bound anew and its key then moved it 0.1 off its new point."""
+    point_key = addon.shapedeform_addon.rig_format.PIN_POINT
+    obj, item, pin = pinned_figure()
+    point = item[point_key]
+    if how == "keyed":
+        pin.location.y = 0.1
+        pin.keyframe_insert("location", index=1, frame=10)
+    else:
+        pin.driver_add("location", 1).driver.expression = "0.1"
+    bpy.context.view_layer.update()
+    bpy.context.scene.frame_set(3)
+    assert item[point_key] == point and pin.location.y == pytest.approx(0.1)
+
+
+def test_a_pin_left_off_the_shape_rides_on_its_nearest_point(addon):
+    """Left beside the swung hand, off the shape: on the shape's nearest point. It went on the
+    rest point under the place mapped back through the nearest triangle, 1.03 away."""
+    point_key = addon.shapedeform_addon.rig_format.PIN_POINT
+    for target in ((-0.6, 0.0, 0.0), (0.5, 0.5, 0.0), (-1.3, -0.2, 0.0)):
+        obj, item, pin = pinned_figure()
+        pin.location = tuple(np.array(target) - np.array(pin.matrix_world.translation))
+        bpy.context.view_layer.update()
+        shown = checks.evaluated_mesh_points(obj)
+        cage = addon.shapedeform_addon.rig_format.shown_pose(obj.shapedeform.cage)
+        distances = np.linalg.norm(cage[:, :2] - target[:2], axis=1)
+        assert distances[item[point_key]] == pytest.approx(distances.min(), abs=1e-6), target
+        assert np.isfinite(shown).all()
+
+
+def test_a_location_field_dragged_moves_a_pin_by_what_it_says(addon, monkeypatch):
+    """A Location field dragged in the sidebar writes its start value plus the drag at each
+    step, with no transform running: re-seated at each step, the pin moved 0.6 for a drag of
+    0.3. With a window, the pin is re-seated once the updates pause (the timer's call here)."""
+    handlers = addon.shapedeform_addon.handlers
+    point_key = addon.shapedeform_addon.rig_format.PIN_POINT
+    monkeypatch.setattr(handlers, "_windowless", lambda: False)
+    obj, item, pin = pinned_figure()
+    start, point = np.array(pin.matrix_world.translation), item[point_key]
+    for y in (0.1, 0.2, 0.3):
+        pin.location = (0.0, y, 0.0)
+        bpy.context.view_layer.update()
+        assert item[point_key] == point  # not while the field is dragged
+    assert bpy.app.timers.is_registered(handlers._reseat_dropped_pins)
+    bpy.app.timers.unregister(handlers._reseat_dropped_pins)
+    handlers._reseat_dropped_pins()  # the updates paused
+    bpy.context.view_layer.update()
+    moved = np.array(pin.matrix_world.translation) - start
+    assert tuple(pin.location) == (0.0, 0.0, 0.0) and item[point_key] != point
+    assert moved[1] == pytest.approx(0.3, abs=0.06) and abs(moved[0]) < 0.06

@@ -139,6 +139,26 @@ def test_place_gives_the_triangle_of_the_layer_in_front():
     assert place(plane, np.eye(4), location, flat, flat, triangles)[2] is None
 
 
+def test_a_point_of_a_layers_outline_goes_on_that_layer_though_rounding_puts_it_off():
+    """A vertex of the arm's outline over the body, read back from float32 places, lies off the
+    arm's triangles by rounding and well inside the body's: at the arm's height it goes on the
+    arm (it went on the body, the only layer found there)."""
+    from solver.rigging.handles import place
+
+    points, triangles, pieces = puppet()
+    shape = np.column_stack([points, np.zeros(len(points))])
+    plane = fit_plane(shape)
+    flat = plane.to_2d(shape)
+    heights = np.where(pieces == 1, 0.02, 0.0)
+    arm_outline = np.flatnonzero((pieces == 1) & np.isclose(points[:, 1], 0.3) & (points[:, 0] < 1.95))
+    assert len(arm_outline) >= 2
+    for k in arm_outline:
+        off = points[k] - [0.0, 1e-6]  # out of the arm, by less than float32 rounds at this size
+        location = np.array([*off, 0.02])
+        _, _, triangle = place(plane, np.eye(4), location, flat, flat, triangles, posed_heights=heights)
+        assert triangle is not None and pieces[triangles[triangle, 0]] == 1, k
+
+
 def test_a_location_lifted_in_front_of_the_shape_goes_on_the_layer_in_front():
     """Where one piece is left on the plane and the other lifted over it, a location on the
     plane is nearest the one left there; lifted past every point (drag.in_front) it goes on
