@@ -11,7 +11,7 @@ from contextlib import contextmanager
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, FloatVectorProperty, StringProperty
+from bpy.props import EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
 from ..solver.rigging.plane import affine_inverse, transform_points
 from ..solver.wording import by_count
@@ -173,6 +173,8 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
 
     handle: StringProperty(name="Handle", options={"SKIP_SAVE"},
                            description="Name of a handle of the active rig to remove (empty: the selected handles)")
+    deleted: IntProperty(name="Deleted Entry", default=-1, options={"SKIP_SAVE", "HIDDEN"},
+                         description="Index of an entry of the active rig's list whose handle was deleted, to remove")
 
     @classmethod
     def poll(cls, context):
@@ -180,6 +182,8 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
         return poll_reason(cls, "" if reachable else "Select a rig or the handles to remove")
 
     def execute(self, context):
+        if self.deleted >= 0:
+            return self._remove_deleted_entry(rig_format.active_rig(context))
         if self.handle:
             # Looked up in the active rig's list: in a shot with library overrides a local and a
             # linked object may share the name, and a cage names its rig too.
@@ -207,6 +211,23 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
             self.report({"ERROR"}, f"{', '.join(repr(o.name) for o in selected)}: not in the handle list of "
                                    "its rig (a copy of a handle?); it moves nothing: delete it with X")
             return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+    def _remove_deleted_entry(self, owner):
+        """Drop the list's entry ``self.deleted`` of ``owner``'s rig, one whose handle is gone
+        (what the list shows as deleted has no Empty to name)."""
+        items = owner.shapedeform.handles if owner is not None else ()
+        if self.deleted >= len(items) or items[self.deleted].object is not None:
+            self.report({"ERROR"}, "No deleted handle there to remove")
+            return {"CANCELLED"}
+        try:
+            rig_format.require_local(owner, "remove handles")
+        except RigError as err:
+            self.report({"ERROR"}, str(err))
+            return {"CANCELLED"}
+        owner.shapedeform.handles.remove(self.deleted)
+        handles.set_active(owner.shapedeform, min(self.deleted, len(items) - 1))
         return {"FINISHED"}
 
 

@@ -139,6 +139,8 @@ def _draw_handles(layout, settings):
     remove = buttons.operator("shapedeform.remove_handle", text="", icon="REMOVE")
     if active is not None:
         remove.handle = active.name  # the list's active item, as every list's "-" does
+    elif len(settings.handles) > settings.active_handle:
+        remove.deleted = settings.active_handle  # an entry whose handle is gone names no Empty
     if active is not None and active.shapedeform.pin_kind != "POSITION":
         col = layout.column(align=True)
         col.label(text=f"{active.shapedeform.pin_kind.title()} Pin '{active.name}'")

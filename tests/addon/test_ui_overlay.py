@@ -46,13 +46,15 @@ class RecordingLayout:
     """Stands in for a UI layout headless: records the operators and properties drawn, and
     apart from them the labels' texts."""
 
-    def __init__(self, record=None, labels=None):
+    def __init__(self, record=None, labels=None, buttons=None):
         self.record = [] if record is None else record
         self.labels = [] if labels is None else labels
+        self.buttons = [] if buttons is None else buttons  # (idname, the properties it was given)
 
     def operator(self, idname, **_):
         self.record.append(idname)
-        return SimpleNamespace()  # takes operator properties
+        self.buttons.append((idname, SimpleNamespace()))
+        return self.buttons[-1][1]  # takes operator properties
 
     def prop(self, _data, name, **_):
         self.record.append(name)
@@ -64,7 +66,7 @@ class RecordingLayout:
         pass
 
     def column(self, **_):
-        return RecordingLayout(self.record, self.labels)
+        return RecordingLayout(self.record, self.labels, self.buttons)
 
     row = column
 
@@ -238,3 +240,23 @@ def test_a_build_modifier_after_the_rig_is_named_among_what_stroke_order_drops(a
     modifier = addon.shapedeform_addon.rig_format.modifiers_of(late)[0]
     order = addon.shapedeform_addon.nodes.input_identifiers(modifier.node_group)["Stroke Order"]
     assert addon.shapedeform_addon.compat.modifier_input(modifier, order) is False
+
+
+def test_the_remove_button_removes_the_entry_of_a_handle_deleted_for_good(addon):
+    """The list shows a handle deleted for good as deleted until "-" removes it; but "-" named
+    the active item's Empty, which such an entry no longer has, so it refused ("Select the
+    handles to remove") and the entry stayed."""
+    obj = grid()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    kept = checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    gone = checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    bpy.data.objects.remove(gone)
+    obj.shapedeform["active_handle"] = 1
+    bpy.context.view_layer.objects.active = obj
+    layout = RecordingLayout()
+    bpy.types.SHAPEDEFORM_PT_panel.draw(SimpleNamespace(layout=layout), bpy.context)
+    minus = next(given for idname, given in layout.buttons if idname == "shapedeform.remove_handle")
+    assert bpy.ops.shapedeform.remove_handle(**vars(minus)) == {"FINISHED"}
+    assert [item.object for item in obj.shapedeform.handles] == [kept]
+    assert obj.shapedeform.active_handle == 0
