@@ -97,7 +97,7 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0, sna
     A handle placed further off the shape than its region's radius holds the nearest part at a
     distance, as a lever: ``notes`` (a list), when given, gets a sentence saying so.
 
-    ``island``, where known, is the island + 1 of the vertex ``location`` is at (see
+    ``island``, where known, is the island number of the vertex ``location`` is at (see
     ``sources.selected_islands``; 0: not known). With ``snap``, a ``location`` off the shape
     puts the handle on the shape's nearest point instead.
 
@@ -169,7 +169,7 @@ def _pin_point(graph, rest_centre, pieces, piece):
 
 def _piece(obj, graph, triangle, island):
     """Each graph point's piece (n,) and the piece a handle is on: ``island`` (a vertex's
-    island + 1) where the cage keeps the islands, else that of ``triangle``, the graph's
+    island number) where the cage keeps the islands, else that of ``triangle``, the graph's
     triangle under the handle (None: not known; the region's nearest point's piece is taken)."""
     islands = rig_format.islands_of(obj.shapedeform.cage.data) if island else None
     if islands is not None and np.any(islands == island):
@@ -205,7 +205,7 @@ def _new_handle_empty(obj, world_matrix, radius):
 
 def add_all(obj, locations, kind="POSITION", on_rest=False, notes=None, islands=None):
     """:func:`add` at each of ``locations`` (k, 3), all or none: the Empties added, or RigError
-    with none left behind. ``islands`` (k,), where known, are the islands + 1 of the vertices
+    with none left behind. ``islands`` (k,), where known, are the island numbers of the vertices
     they are at."""
     added = []
     islands = np.zeros(len(locations), dtype=np.int64) if islands is None else islands

@@ -142,7 +142,7 @@ class SHAPEDEFORM_OT_add_handle(bpy.types.Operator):
 
     def _locations(self, context, active, obj, given, at_selection):
         """World locations (k, 3) of the handles to add, in the rig owner's space, and at a
-        selection the islands + 1 (k,) of its points where the object keeps them (else None)."""
+        selection the island numbers (k,) of its points where the object keeps them (else None)."""
         if not at_selection:
             # As Blender adds things in Object Mode: at the 3D cursor (projected onto the plane).
             locations = np.array([self.location if given else context.scene.cursor.location], dtype=np.float64)

@@ -68,7 +68,7 @@ def kind_of(obj):
 
 
 def selected_islands(obj):
-    """The islands + 1 (k,) of ``obj``'s selected points, where its source keeps them, else None
+    """The island numbers (k,) of ``obj``'s selected points, where its source keeps them, else None
     (see the package's docstring; call in Object Mode)."""
     islands = getattr(module_for(obj), "selected_islands", None)
     return None if islands is None else islands(obj)

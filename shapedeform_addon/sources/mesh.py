@@ -236,7 +236,7 @@ def selected(obj):
 
 
 def selected_islands(obj):
-    """Each selected vertex's island + 1 (k,) int32, in :func:`selected`'s order (0: not known,
+    """Each selected vertex's island number (k,) int32, in :func:`selected`'s order (0: not known,
     a vertex added since binding), or None where the mesh keeps none (call in Object Mode)."""
     islands = rig_format.islands_of(obj.data)
     return None if islands is None else islands[_selection(obj.data)]
