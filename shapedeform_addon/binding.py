@@ -13,7 +13,7 @@ no rig. Unbinding releases the duplicates that follow the rig first.
 import bpy
 
 from ..solver.wording import by_count
-from . import bake, handles, rig, rig_format, sources
+from . import bake, duplicates, handles, rig, rig_format, sources
 from .errors import RigError
 
 
@@ -118,10 +118,10 @@ def unbind(obj):
     # never wrote the object's data: there is nothing to restore.
     legacy = rig_format.is_legacy(obj)
     if rig_format.is_follower(obj):
-        return handles.release_follower(obj)
+        return duplicates.release_follower(obj)
     source = sources.module_for(obj)
     # Followers first: released, they no longer count as rigs of data they share with it.
-    lost = handles.release_followers(obj)
+    lost = duplicates.release_followers(obj)
     if settings.cage is None:
         lost += (source.restore_legacy(obj) if legacy else []) + source.unbind(obj)
     else:
@@ -129,7 +129,7 @@ def unbind(obj):
         lost += source.unbind(obj)  # while the cage is there: it tells what transform was applied
         cage = settings.cage
         mesh = cage.data
-        for orphan in handles.follower_cages(obj):  # of deleted duplicates (removed when the file is saved)
+        for orphan in duplicates.follower_cages(obj):  # of deleted duplicates (removed when the file is saved)
             bpy.data.objects.remove(orphan)
         bpy.data.objects.remove(cage)
         if mesh.users == 0:

@@ -13,7 +13,7 @@ from contextlib import contextmanager
 import bpy
 from bpy.app.handlers import persistent
 
-from . import handles, nodes, rig, rig_format
+from . import duplicates, handles, nodes, rig, rig_format
 from .errors import RigError
 from .sources import mesh
 
@@ -126,7 +126,7 @@ def on_depsgraph_update(scene, depsgraph):
         if not isinstance(update.id, bpy.types.Object):
             continue
         obj = update.id.original
-        handles.settle_duplicate(obj)
+        duplicates.settle_duplicate(obj)
         if obj.library is None and (obj.shapedeform.is_bound or rig_format.watches_handles(obj)):
             rig_format.keep_handles_evaluated(obj)  # a handle deleted, the animation data replaced
         if (obj.type == "MESH" and obj.data.library is None and nodes.ISLAND in obj.data.attributes
@@ -268,7 +268,7 @@ def sync_scene():
     nodes.upgrade()
     rig_format.relink_overrides()
     for obj in bpy.data.objects:
-        handles.settle_duplicate(obj)
+        duplicates.settle_duplicate(obj)
         if rig_format.is_owner(obj):
             handles.keep_in_collection(obj)
         if obj.shapedeform.is_bound or rig_format.watches_handles(obj):

@@ -17,7 +17,7 @@ space at bind time). The cage object is parented to the bound object, so Apply T
 keeps the cage's world place by changing the cage's own transform: the group maps the cage into
 the deformed object's space with ``inverse(object) @ cage``, both world matrices (the object's
 from Self Object). A duplicate that follows the rig has a cage object of its own, sharing the
-rig's cage mesh and parented to it as the rig's cage is to the owner (``handles.follow``):
+rig's cage mesh and parented to it as the rig's cage is to the owner (``duplicates.follow``):
 Apply Transform on either object keeps both in place, and nothing but its own modifier points
 at it (a modifier naming its own object kept a deleted duplicate alive in the file).
 
@@ -78,7 +78,7 @@ ISLAND = ".sd_island"
 RIGGED = "sd_rigged"
 CAGE_INPUT, RIGGED_INPUT = "Cage", "Rigged Layers"
 # Up to version 9 the group read the deformed object's space from this input instead of Self
-# Object; only a linked library's group can still have it (``handles.follow``).
+# Object; only a linked library's group can still have it (``duplicates.follow``).
 LEGACY_OWNER_INPUT = "Owner"
 REFINE_INPUT, ORDER_INPUT = "Refine", "Stroke Order"
 REFINE_MOST = 6  # the most times Refine subdivides

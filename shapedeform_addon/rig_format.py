@@ -38,7 +38,7 @@ The cage, a mesh object parented to the owner (or, on a curve whose Path Animati
     (:mod:`.bake`; a copy of the mesh for a rig of its own has an action of its own:
     :func:`copy_cage_mesh`), the Key's ``shapedeform_baked_from`` a digest of what the bake was
     made from (:func:`bake_source`; none in files from before it); the mesh's ``shapedeform_cage`` names the owner's cage object it
-    belongs to (:func:`.handles.own_cage_mesh`). In a library override of a rigged character the cage's mesh is a local
+    belongs to (:func:`.duplicates.own_cage_mesh`). In a library override of a rigged character the cage's mesh is a local
     copy of the library's, made the first time the rig poses, bakes or clears a bake
     (:func:`own_mesh`), and again when the library's rig was bound anew
     (:func:`follow_library_cage`).
@@ -48,8 +48,8 @@ Every object the rig deforms (the owner, and duplicates of it):
 
 A duplicate of the owner (Shift+D, Alt+D) copies its settings and modifier: it *follows* the
 owner's rig (the same handles; a cage object of its own, in no collection, parented to it and
-sharing the rig's cage mesh: :func:`.handles.follow`) and is never posed on its own. Unbinding
-the owner releases it first (:func:`.handles.release_followers`).
+sharing the rig's cage mesh: :func:`.duplicates.follow`) and is never posed on its own. Unbinding
+the owner releases it first (:func:`.duplicates.release_followers`).
 """
 
 import random

@@ -787,7 +787,7 @@ def test_a_copy_of_a_baked_rig_bakes_into_an_action_of_its_own(addon):
     assert bake_actions() == {original.action.name}
     shared = obj.shapedeform.cage.data
     copy.shapedeform.cage.data = shared  # as two appends reusing data leave them
-    assert shapedeform.handles.own_cage_mesh(copy) and copy.shapedeform.cage.data != shared
+    assert shapedeform.duplicates.own_cage_mesh(copy) and copy.shapedeform.cage.data != shared
     assert bake_of(copy).action not in (None, original.action)
     assert shapedeform.bake.clear(copy) == 6 and shapedeform.bake.clear(obj) == 6
     assert bake_actions() == set()

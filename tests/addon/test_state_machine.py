@@ -347,7 +347,7 @@ class Machine:
         bound = settings.is_bound
         was_owner = self.addon.rig_format.is_owner(obj)
         # Unbinding an owner releases the duplicates that follow its rig too.
-        released = [obj] + (self.addon.handles.followers(obj) if was_owner else [])
+        released = [obj] + (self.addon.duplicates.followers(obj) if was_owner else [])
         quads = {o.name: self.quad_given_back(o) for o in released if o.shapedeform.kind == "IMAGE"}
         if not self.call(bpy.ops.shapedeform.unbind, "never" if bound else "must"):
             return
