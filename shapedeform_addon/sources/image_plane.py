@@ -203,10 +203,7 @@ def prepare(obj, settings):
     loop_points = plane.to_2d(corners[loop_vertices])
     # UVs are interpolated over the triangles Blender splits the face into, each affinely: map
     # through the same triangles, so a quad that is no parallelogram shows the same texels.
-    quad.calc_loop_triangles()
-    loop_triangles = np.empty(len(quad.loop_triangles) * 3, dtype=np.int32)
-    quad.loop_triangles.foreach_get("loops", loop_triangles)
-    loop_triangles = loop_triangles.reshape(-1, 3)
+    loop_triangles = _loop_triangles(quad)
 
     def to_plane(uv_points):
         return map_by_triangles(uv, loop_points, loop_triangles, uv_points)
@@ -235,16 +232,7 @@ def prepare(obj, settings):
     render_uv = next(i for i, layer in enumerate(quad.uv_layers) if layer.active_render)
 
     def commit(o):
-        cutout = bpy.data.meshes.new(f"{quad.name} Cut-out")
-        cutout.from_pydata(vertices.tolist(), [], graph.triangles.tolist())
-        for name, uvs in uv_maps:
-            cutout.uv_layers.new(name=name).data.foreach_set("uv", uvs.ravel())
-        cutout.uv_layers.active_index = active_uv
-        cutout.uv_layers[render_uv].active_render = True
-        for material in quad.materials:
-            cutout.materials.append(material)
-        cutout.polygons.foreach_set("material_index", np.full(len(cutout.polygons), material_index, np.int32))
-        cutout.update()
+        cutout = _new_cutout(quad, vertices, graph.triangles, uv_maps, active_uv, render_uv, material_index)
         # Added to the cut-outs the quad is kept for, which other planes bound on it (linked
         # duplicates bound one by one) keep: a copy's cut-out has another name, and needs a quad
         # of its own (own_quad).
@@ -261,6 +249,31 @@ def prepare(obj, settings):
     if not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
         notes.append("its UVs show the picture more than once: only the copy in the UV square is cut out")
     return Prepared(plane, graph, commit, advice="; ".join(filter(None, notes)))
+
+
+def _loop_triangles(quad):
+    """The loops (t, 3) int32 of the triangles Blender splits ``quad``'s faces into."""
+    quad.calc_loop_triangles()
+    loops = np.empty(len(quad.loop_triangles) * 3, dtype=np.int32)
+    quad.loop_triangles.foreach_get("loops", loops)
+    return loops.reshape(-1, 3)
+
+
+def _new_cutout(quad, vertices, triangles, uv_maps, active_uv, render_uv, material_index):
+    """The cut-out mesh of ``quad``: ``vertices`` (n, 3) and ``triangles`` (t, 3), each UV map
+    of ``uv_maps`` ([(name, (t, 3, 2) UVs per corner)]), the same active and render maps, and
+    the quad's materials, every face showing ``material_index``."""
+    cutout = bpy.data.meshes.new(f"{quad.name} Cut-out")
+    cutout.from_pydata(vertices.tolist(), [], triangles.tolist())
+    for name, uvs in uv_maps:
+        cutout.uv_layers.new(name=name).data.foreach_set("uv", uvs.ravel())
+    cutout.uv_layers.active_index = active_uv
+    cutout.uv_layers[render_uv].active_render = True
+    for material in quad.materials:
+        cutout.materials.append(material)
+    cutout.polygons.foreach_set("material_index", np.full(len(cutout.polygons), material_index, np.int32))
+    cutout.update()
+    return cutout
 
 
 def _reading_notes(obj, node, changed):
