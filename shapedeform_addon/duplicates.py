@@ -40,6 +40,7 @@ def adopt_duplicated(obj):
     shared = settings.cage
     cage = _cage_for(obj, shared, rig_format.copy_cage_mesh(shared.data))
     cage.shapedeform.rig = obj
+    _number_islands_apart(obj, cage.data)
     settings.handle_collection = None  # the original's: this rig gets its own
     home = handles.collection(obj)
     home.objects.link(cage)
@@ -167,7 +168,16 @@ def own_cage_mesh(obj):
     for own in [cage, *followers]:
         own.data = mesh
     mesh[rig_format.CAGE_STAMP] = cage
+    _number_islands_apart(obj, mesh)
     return True
+
+
+def _number_islands_apart(obj, cage_mesh):
+    """Number the islands of ``obj``'s rig, just given ``cage_mesh`` (a copy of another rig's
+    cage mesh), apart from that rig's, where ``obj``'s mesh is its own: a mesh shared with the
+    other rig keeps the numbers both read (``rig_format.renumber_islands``)."""
+    if obj.type == "MESH" and obj.data.library is None and not rig_format.other_rigged_users(obj):
+        rig_format.renumber_islands(cage_mesh, obj.data)
 
 
 def followers(obj):

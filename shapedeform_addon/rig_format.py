@@ -462,20 +462,55 @@ def shown_pose(cage):
 ISLANDS_PER_RIG = 4096
 
 
-def island_numbers(pieces):
-    """Each graph point's island number for a new rig, (n,) int32, from its piece (n,) (0 to
-    k - 1): the first number a multiple of :data:`ISLANDS_PER_RIG` drawn at random, and
-    unlike those of the file's rigs (a rig bound by an older version numbered from 1). A rig
-    of more islands than that numbers them from 1."""
+def island_numbers(pieces, data=None):
+    """Each graph point's island number for a new rig of ``data`` (the owner's mesh), (n,)
+    int32, from its piece (n,) (0 to k - 1): from a first number that is a multiple of
+    :data:`ISLANDS_PER_RIG`, the one another rig of ``data`` numbers from (its vertices keep
+    that rig's numbers, which both then read), else one drawn at random unlike those of the
+    file's rigs (a rig bound by an older version numbered from 1). A rig of more islands than
+    that numbers them from 1."""
     pieces = np.asarray(pieces, dtype=np.int32)
     if pieces.max(initial=0) + 1 >= ISLANDS_PER_RIG:
         return pieces + 1
-    cages = [obj.shapedeform.cage for obj in bound_objects() if is_owner(obj) and obj.shapedeform.cage is not None]
-    taken = {int(islands.min()) // ISLANDS_PER_RIG for islands in map(islands_of, (c.data for c in cages))
-             if islands is not None and len(islands)}
-    free = sorted(set(range(1, ISLANDS_PER_RIG)) - taken)
-    first = random.choice(free) * ISLANDS_PER_RIG if free else 0
-    return pieces + first + 1
+    firsts = {obj.data if obj.type == "MESH" else None: _first_island(obj.shapedeform.cage.data)
+              for obj in bound_objects() if is_owner(obj)}
+    if data is not None and firsts.get(data) is not None:
+        return pieces + firsts[data] + 1
+    return pieces + _free_first_island(firsts.values()) + 1
+
+
+def _first_island(mesh):
+    """The first number (a multiple of :data:`ISLANDS_PER_RIG`) a rig numbers its islands from,
+    from its cage's mesh; None where it keeps none."""
+    islands = islands_of(mesh)
+    return None if islands is None or not len(islands) else int(islands.min()) // ISLANDS_PER_RIG * ISLANDS_PER_RIG
+
+
+def _free_first_island(taken):
+    """A first island number drawn at random, none of ``taken`` (0 when all are)."""
+    free = sorted(set(range(ISLANDS_PER_RIG, ISLANDS_PER_RIG ** 2, ISLANDS_PER_RIG)) - set(taken))
+    return random.choice(free) if free else 0
+
+
+def renumber_islands(cage_mesh, mesh=None):
+    """Number anew the islands of a copied rig: its cage's mesh ``cage_mesh`` and, where the
+    copy's mesh ``mesh`` is its own, its vertices, from a first number no other rig has. A rig
+    given a copy of another's cage (Shift+D with its handles, a character appended twice)
+    otherwise kept its original's numbers, which the original read as its own islands in a mesh
+    the copy was joined into. A rig numbered from 1 (by an older version) is left as it is."""
+    first = _first_island(cage_mesh)
+    if not first:
+        return
+    taken = [_first_island(obj.shapedeform.cage.data) for obj in bound_objects() if is_owner(obj)]
+    shift = _free_first_island(taken) - first
+    for data in (cage_mesh, mesh):
+        islands = islands_of(data) if data is not None else None
+        if islands is None:
+            continue
+        mine = (islands >= first) & (islands < first + ISLANDS_PER_RIG)
+        islands[mine] += shift
+        data.attributes[nodes.ISLAND].data.foreach_set("value", islands)
+        data.update()
 
 
 def islands_of(mesh):

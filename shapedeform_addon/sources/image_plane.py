@@ -309,7 +309,7 @@ def own_quad(obj):
         A follower, or a duplicate just given a rig of its own.
     """
     quad = obj.shapedeform.original_data
-    if quad is None or obj.data.name in rig_format.quad_cutouts(quad):
+    if quad is None or obj.data.name in _cutouts_in_use(quad, but=obj):
         return False
     bound_on_quad = _planes_on(quad)
     sharing = [plane for plane in bound_on_quad if plane.data == obj.data]  # itself and its linked duplicates

@@ -155,7 +155,7 @@ def prepare(obj, settings):
     if not well_shaped:
         advice = ("its long thin faces can fold where it bends hard: raise Refine on its Shape Deform "
                   "modifier to subdivide them")
-    islands = _islands(graph) if mode == "OWN" else None
+    islands = _islands(graph, obj.data) if mode == "OWN" else None
     if islands is None:
         return Prepared(plane, graph, advice=advice)
     return Prepared(plane, graph, lambda o: _mark_islands(o, islands[vertex_point]), advice=advice, islands=islands)
@@ -178,11 +178,11 @@ def _outline_graph(flat, tris, loops, density):
     return outline_graph(rings, density)
 
 
-def _islands(graph):
-    """Each graph point's island number (n,) int32 (:func:`rig_format.island_numbers`); None
-    when the graph is one piece."""
+def _islands(graph, data):
+    """Each graph point's island number (n,) int32 for a rig of mesh ``data``
+    (:func:`rig_format.island_numbers`); None when the graph is one piece."""
     pieces = graph.components()
-    return rig_format.island_numbers(pieces) if pieces.max() > 0 else None
+    return rig_format.island_numbers(pieces, data) if pieces.max() > 0 else None
 
 
 def _mark_islands(obj, vertex_islands):

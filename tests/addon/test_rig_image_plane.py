@@ -2,7 +2,7 @@
 """Rigging an image with alpha imported as a plane: the quad becomes a cut-out."""
 
 import bpy
-from mathutils import Vector
+from mathutils import Matrix, Vector
 import numpy as np
 import pytest
 
@@ -766,3 +766,32 @@ def test_bind_says_a_quads_shape_keys_stop_showing(addon, tmp_path, capsys):
     assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
     bpy.context.view_layer.update()
     assert np.ptp(checks.evaluated_mesh_points(obj)[:, 1]) == pytest.approx(squashed)
+
+
+def test_a_copy_whose_cut_out_takes_a_name_the_quad_still_lists_gets_a_quad_of_its_own(addon, tmp_path, quiet):
+    """Two planes bound on one quad, the second deleted while bound, the file saved, reopened
+    and cleaned up (its cut-out goes): a Shift+D copy of the first has a cut-out of that freed
+    name, which the quad still listed, so the copy kept the first's quad, and scaling the
+    copy's mesh after Unbind scaled the first's picture too (corners 1.333 for 0.667)."""
+    first, _ = import_picture(tmp_path)
+    quad_points = checks.mesh_points(first).copy()
+    second = duplicate(first, linked=True)
+    second.location.x += 2.5
+    bind(first)
+    bind(second)
+    handles = second.shapedeform.handle_collection
+    checks.select_only(second)
+    assert bpy.ops.object.delete() == {"FINISHED"}
+    for empty in list(handles.all_objects):
+        bpy.data.objects.remove(empty)
+    bpy.data.collections.remove(handles)
+    path, name = str(tmp_path / "deleted.blend"), first.name
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    bpy.data.orphans_purge(do_local_ids=True, do_linked_ids=True, do_recursive=True)
+    first = bpy.data.objects[name]
+    copy = duplicate(first, linked=False)
+    assert copy.shapedeform.original_data != first.shapedeform.original_data
+    unbind(first)  # releases the copy
+    copy.data.transform(Matrix.Scale(2.0, 4))
+    np.testing.assert_array_equal(checks.mesh_points(first), quad_points)

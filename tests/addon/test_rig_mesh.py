@@ -832,3 +832,65 @@ def test_a_rigged_puppet_joined_into_another_follows_the_parts_it_lies_on(addon)
     on_body_only = arm & (joined_rest[:, 0] < 1.15)  # left of the first puppet's arm
     assert on_body_only.sum() >= 4
     np.testing.assert_allclose(moved[on_body_only], 0.0, atol=1e-3)
+
+
+def island_numbers_of(addon, mesh):
+    return addon.shapedeform_addon.rig_format.islands_of(mesh)
+
+
+def test_two_rigs_of_one_puppet_mesh_number_its_islands_alike(addon):
+    """Alt+D of a puppet before Bind, each bound: two rigs of one mesh. The second Bind wrote
+    its own numbers over the mesh's, so the first rig knew none of its vertices: with a shape
+    key sliding the arm, 8 of its 21 arm vertices stayed behind with the body, 1.0 off."""
+    first, body = puppet()
+    checks.select_only(first)
+    assert bpy.ops.object.duplicate(linked=True) == {"FINISHED"}
+    second = bpy.context.active_object
+    second.location.y -= 3.0
+    pose_puppet(first)
+    checks.select_only(second)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    cage_numbers = island_numbers_of(addon, first.shapedeform.cage.data)
+    assert set(island_numbers_of(addon, first.data)) <= set(cage_numbers)
+    np.testing.assert_array_equal(island_numbers_of(addon, second.shapedeform.cage.data), cage_numbers)
+    first.shape_key_add(name="Basis")
+    reach = first.shape_key_add(name="Reach", from_mix=False)
+    for i in range(body, len(first.data.vertices)):
+        reach.data[i].co.x += 0.03
+    reach.value = 1.0
+    keyed = checks.mesh_points(first).copy()
+    keyed[body:, 0] += 0.03
+    bpy.context.view_layer.update()
+    assert_arm_up_body_still(checks.evaluated_mesh_points(first), keyed, np.arange(len(keyed)) >= body)
+
+
+def test_a_copy_with_a_rig_of_its_own_numbers_its_islands_apart(addon):
+    """Shift+D of a posed puppet with its handles gives the copy a rig of its own, whose cage
+    kept the original's island numbers: joined back into the original, the copy's arm vertices
+    lying on the original's body moved up 1.0 with the original's arm."""
+    from test_handles_driver import duplicate
+
+    first, _ = puppet()
+    pose_puppet(first)
+    second = duplicate([first] + [item.object for item in first.shapedeform.handles], first)
+    rig_format = addon.shapedeform_addon.rig_format
+    assert rig_format.is_owner(second) and second.shapedeform.cage != first.shapedeform.cage
+    numbers = [island_numbers_of(addon, o.shapedeform.cage.data) for o in (first, second)]
+    assert not set(numbers[0]) & set(numbers[1])
+    np.testing.assert_array_equal(np.unique(island_numbers_of(addon, second.data)), np.unique(numbers[1]))
+    second.location.x -= 1.2
+    bpy.context.view_layer.update()
+    joined_rest = checks.mesh_points(second) + [-1.2, 0.0, 0.0]
+    arm = island_numbers_of(addon, second.data) == numbers[1].max()
+    count = len(first.data.vertices)
+    for other in bpy.context.selected_objects:
+        other.select_set(False)
+    first.select_set(True)
+    second.select_set(True)
+    bpy.context.view_layer.objects.active = first
+    assert bpy.ops.object.join() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    moved = checks.evaluated_mesh_points(first)[count:, :2] - joined_rest[:, :2]
+    on_body_only = arm & (joined_rest[:, 0] < 1.15)
+    assert on_body_only.sum() >= 4
+    np.testing.assert_allclose(moved[on_body_only], 0.0, atol=1e-3)
