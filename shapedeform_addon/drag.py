@@ -15,7 +15,7 @@ import bpy
 import numpy as np
 from bpy_extras import view3d_utils
 
-from ..solver.rigging.drag import in_front, nearest, parent_offset, ray_plane, transform_points, world_plane
+from ..solver.rigging.drag import above_every_layer, nearest, parent_offset, ray_plane, transform_points, world_plane
 from . import autokey, handles, rig, rig_format
 from .errors import RigError, poll_reason
 
@@ -114,9 +114,10 @@ def begin(context, obj, ray, pin=False):
         if len(shape) == 0:
             raise RigError(f"'{obj.name}' has no points to pin")
         missing, active = settings.handle_collection is None, settings.active_handle
-        # Where the pose overlaps itself, on the part the view shows: the hit lies on the plane,
-        # as near a part left there, under the others, as to the one in front.
-        handle = handles.add(obj, tuple(in_front(hit, shape, plane[1])), snap=True)
+        # Where the pose overlaps itself, on the part in front (the rig's front, which renders
+        # see): the hit lies on the plane, as near a part left there, under the others, as to
+        # the one in front.
+        handle = handles.add(obj, tuple(above_every_layer(hit, shape, plane[1])), snap=True)
         context.view_layer.update()
         return DragState(obj, handle, True, plane, hit, missing, active)
     # A handle deleted in the viewport lingers as an orphan (in no scene): never grab it. Pins

@@ -127,19 +127,23 @@ def follower_cages(obj):
             and o.shapedeform.rig == obj.original]
 
 
-def settle_duplicate(obj):
+def settle_duplicate(obj, opened=False):
     """A duplicate of a rig's owner, made or found: a rig of its own where it was duplicated
     with handles of the rig (:func:`adopt_duplicated`), else a follower of the rig
     (:func:`follow`). Library data is left as the library has it. (Its callers then have the
     driver that keeps the handles evaluated fit what it became:
-    ``rig_format.keep_handles_evaluated``.)"""
+    ``rig_format.keep_handles_evaluated``.)
+
+    An image plane's duplicate gets a quad of its own where it needs one when it was just made
+    (or, ``opened``, when its file was opened): looking for the planes bound on a quad reads
+    every object, too slow for every update of every follower."""
     if obj.library is None and rig_format.is_follower(obj):
         if not rig_format.modifiers_of(obj):  # converted (Keep Original), its modifier applied: frozen
             release_follower(obj)
             return
-        if not adopt_duplicated(obj):
-            follow(obj)
-        image_plane.own_quad(obj)
+        settled = adopt_duplicated(obj) or follow(obj)
+        if settled or opened:
+            image_plane.own_quad(obj)
     elif obj.library is None and rig_format.is_owner(obj):
         own_cage_mesh(obj)
 

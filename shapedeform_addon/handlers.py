@@ -5,9 +5,11 @@ While the animator drags, plays or scrubs, solves have the Viewport iteration bu
 stops short of converging leaves a pose a render (Render budget) would not give. A one-shot
 timer then solves those rigs again with the Render budget once the updates pause, so what stays
 on screen is what renders, as Blender's viewport refines its samples when the view stops
-changing. A frame stepped to is solved with the Render budget at once.
+changing. A frame stepped to is solved with the Render budget at once. Another timer binds pins
+moved by hand to the points they are left on once the move is over.
 """
 
+import traceback
 from contextlib import contextmanager
 
 import bpy
@@ -112,7 +114,8 @@ def on_depsgraph_update(scene, depsgraph):
 
     A duplicate of a rig's owner gets its follower's cage here, or, made together with handles
     of the rig, a rig of its own. A handle or pin made active (selecting evaluates) becomes its
-    rig's list's active item.
+    rig's list's active item. A pin moved off its point by hand is bound to the point it is
+    left on (:func:`_pin_moved_by_hand`).
     """
     if _busy:
         return
@@ -141,11 +144,8 @@ def on_depsgraph_update(scene, depsgraph):
         if owner is None or obj.type != "EMPTY":
             continue
         is_pin = obj.shapedeform.pin_kind != "POSITION"
-        if is_pin and update.is_updated_transform and handles.left_its_point(obj):
-            if not _windowless():
-                _reseat_later()
-            elif _reseat_pins(owner):  # nothing drags it: a script moved it
-                moved[owner.name] = owner
+        if is_pin and update.is_updated_transform and _pin_moved_by_hand(obj, owner):
+            moved[owner.name] = owner
         if owner.name in moved:
             continue  # posed once whatever else of it changed
         # Pins ride on the cage (vertex parents), so their moves come from the pose, and posing
@@ -156,16 +156,29 @@ def on_depsgraph_update(scene, depsgraph):
     _pose(list(moved.values()), depsgraph)
 
 
+def _pin_moved_by_hand(pin, owner):
+    """Whether ``pin``, whose transform changed, was moved off its point and is bound now to
+    the point it was left on (a script's move, with no window); with a window, once the move
+    is over (:func:`_reseat_later`)."""
+    if not handles.left_its_point(pin):
+        return False
+    if not _windowless():
+        _reseat_later()
+        return False
+    return _reseat_pins(owner)
+
+
 def _reseat_pins(owner):
     """Bind the pins of ``owner``'s rig that were moved by hand to the points they were left
     on; whether any was bound to another point. A library's rig keeps its pins' points: they
-    go back on them, and the status bar says why."""
+    go back on them, and the owner's status (shown in the status bar) says why."""
     try:
         return handles.reseat_pins(owner)
     except RigError as err:
+        owner.shapedeform.status = str(err)
         _report([str(err)])
-    except Exception:  # a handler must not raise: posing the rig says why it cannot be built
-        pass
+    except Exception:  # a handler must not raise; the pin stays where it was left
+        traceback.print_exc()
     return False
 
 
@@ -268,9 +281,10 @@ def sync_scene():
     nodes.upgrade()
     rig_format.relink_overrides()
     for obj in bpy.data.objects:
-        duplicates.settle_duplicate(obj)
-        if rig_format.is_owner(obj):
+        duplicates.settle_duplicate(obj, opened=True)
+        if rig_format.is_owner(obj) and obj.library is None:
             handles.keep_in_collection(obj)
+            handles.put_pins_back(obj)
         if obj.shapedeform.is_bound or rig_format.watches_handles(obj):
             rig_format.keep_handles_evaluated(obj)  # a file from before the driver, the extension enabled again
     scene = bpy.context.scene

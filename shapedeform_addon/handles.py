@@ -293,7 +293,7 @@ def reseat_pins(obj):
     Returns
     -------
     bool
-        Whether any pin moved to another point (the rig is then rebuilt on next use).
+        Whether any pin is bound to another point now (the rig is then rebuilt on next use).
 
     Raises
     ------
@@ -310,16 +310,28 @@ def reseat_pins(obj):
             item.object.location = (0.0, 0.0, 0.0)
         raise RigError(refusal)
     rig = rigs.as_shown(obj)
+    changed = False
     for item in moved:
         pin = item.object
         _, rest_centre, triangle = _place(obj, rig, pin.matrix_world.translation, snap=True)
         pieces, piece = _piece(obj, rig.graph, triangle, 0)
         point = _pin_point(rig.graph, rest_centre, pieces, piece)
+        changed |= point != item[rig_format.PIN_POINT]
         item[rig_format.PIN_POINT] = point
         pin.parent_vertices = (point, 0, 0)
         pin.location = (0.0, 0.0, 0.0)
-    rigs.invalidate(obj)
-    return True
+    if changed:
+        rigs.invalidate(obj)
+    return changed
+
+
+def put_pins_back(obj):
+    """Put the pins of owner ``obj``'s rig that an older version left off their points (where
+    moving a pin's Empty moved nothing) back on them, as they pose; what a user moves from now
+    on re-seats (:func:`reseat_pins`). Called when a file is opened."""
+    for item in obj.shapedeform.handles:
+        if rig_format.present(item.object) and rig_format.PIN_POINT in item and left_its_point(item.object):
+            item.object.location = (0.0, 0.0, 0.0)
 
 
 def fit_pin_shapes(obj, rig=None):

@@ -213,7 +213,6 @@ class SHAPEDEFORM_OT_remove_handle(bpy.types.Operator):
             return {"CANCELLED"}
         return {"FINISHED"}
 
-
     def _remove_deleted_entry(self, owner):
         """Drop the list's entry ``self.deleted`` of ``owner``'s rig, one whose handle is gone
         (what the list shows as deleted has no Empty to name)."""

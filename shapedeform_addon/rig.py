@@ -363,8 +363,8 @@ def pose_safely(obj, depsgraph=None, final=None):
 
     The last line of defence of the handlers, which pose every rig of a scene in turn: any
     error is caught, so one rig that fails leaves the others posed. Errors other than RigError
-    come from saved data that reading it does not expect (an ID property deleted or edited by a
-    script): their traceback is printed, and the status says to bind again.
+    (saved data a script edited, or a fault of the extension) have their traceback printed,
+    and the status says so.
 
     Returns
     -------
@@ -377,10 +377,10 @@ def pose_safely(obj, depsgraph=None, final=None):
         message = ""
     except RigError as err:
         message = str(err)
-    except Exception as err:  # nothing was written: pose() writes the cage last, once all went well
+    except Exception as err:  # the cage is written last, once all went well: it keeps its last pose
         traceback.print_exc()
-        message = (f"'{owner.name}': its rig's saved data is damaged ({type(err).__name__}: {err}): "
-                   "Unbind and Bind again")
+        message = (f"'{owner.name}' could not be posed ({type(err).__name__}: {err}; the system console has "
+                   "the details): if a script edited its rig's saved data, Undo; else please report it")
     if not message and not rig_format.modifiers_of(owner):
         message = (f"'{owner.name}' lost its Shape Deform modifier (applied, removed, or converted): "
                    "its handles no longer move it; Unbind removes the rig and keeps the shape")

@@ -472,11 +472,12 @@ def island_numbers(pieces, data=None):
     pieces = np.asarray(pieces, dtype=np.int32)
     if pieces.max(initial=0) + 1 >= ISLANDS_PER_RIG:
         return pieces + 1
-    firsts = {obj.data if obj.type == "MESH" else None: _first_island(obj.shapedeform.cage.data)
-              for obj in bound_objects() if is_owner(obj)}
-    if data is not None and firsts.get(data) is not None:
-        return pieces + firsts[data] + 1
-    return pieces + _free_first_island(firsts.values()) + 1
+    numbered = [(obj.data, _first_island(obj.shapedeform.cage.data)) for obj in bound_objects() if is_owner(obj)]
+    numbered = [(owned, first) for owned, first in numbered if first is not None]  # a rig of one island has none
+    same_data = [first for owned, first in numbered if data is not None and owned == data]
+    if same_data:
+        return pieces + same_data[0] + 1
+    return pieces + _free_first_island(first for _, first in numbered) + 1
 
 
 def _first_island(mesh):
@@ -487,7 +488,8 @@ def _first_island(mesh):
 
 
 def _free_first_island(taken):
-    """A first island number drawn at random, none of ``taken`` (0 when all are)."""
+    """A first island number none of ``taken`` has (0 when all are), drawn at random: rigs bound
+    in different files and appended into one then differ too, as rigs of one file do."""
     free = sorted(set(range(ISLANDS_PER_RIG, ISLANDS_PER_RIG ** 2, ISLANDS_PER_RIG)) - set(taken))
     return random.choice(free) if free else 0
 

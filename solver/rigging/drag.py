@@ -13,7 +13,7 @@ import numpy as np
 
 from .plane import transform_points  # noqa: F401  (the drag maps points with it too)
 
-__all__ = ["world_plane", "ray_plane", "transform_points", "nearest", "in_front", "parent_offset"]
+__all__ = ["world_plane", "ray_plane", "transform_points", "nearest", "above_every_layer", "parent_offset"]
 
 # A ray closer than this to parallel with the plane (cosine of the angle between the ray and the
 # plane's normal) meets it too far away to be useful: the drag waits for a better mouse position.
@@ -85,11 +85,12 @@ def nearest(points, query):
     return int(np.argmin(distance))
 
 
-def in_front(point, shape, normal):
+def above_every_layer(point, shape, normal):
     """``point`` (3,) lifted along the plane's ``normal`` (3,) past every point of ``shape``
     (p, 3), the shape as shown, whose layers are lifted along it where the pose overlaps
-    itself: a handle added there goes on the layer in front, the one the view shows, where a
-    layer left on the plane would otherwise be as near as the one over it."""
+    itself: a handle added there goes on the layer in front (the one lifted furthest along
+    ``normal``, which a view from that side shows), where a layer left on the plane would
+    otherwise be as near as the one over it."""
     shape = np.asarray(shape, dtype=np.float64).reshape(-1, 3)
     reach = float(np.ptp(shape, axis=0).max()) if len(shape) else 0.0
     return np.asarray(point, dtype=np.float64) + reach * np.asarray(normal, dtype=np.float64)

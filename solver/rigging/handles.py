@@ -326,7 +326,7 @@ def place(plane, space, location, rest_points, posed_points, triangles, on_rest=
     triangles = np.asarray(triangles, dtype=np.int64)
     layer = None if posed_heights is None else \
         _layer_at(posed_points, posed_heights, triangles, point, plane.heights(in_rig)[0])
-    if layer is None and snap:
+    if layer is None and snap and posed_heights is not None:  # without heights no layer is looked for
         posed_points = np.asarray(posed_points, dtype=np.float64)
         nearest = int(np.argmin(np.linalg.norm(posed_points - point, axis=1)))
         return posed_points[nearest], np.asarray(rest_points, dtype=np.float64)[nearest], None

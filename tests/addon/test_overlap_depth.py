@@ -802,3 +802,27 @@ def test_a_location_field_dragged_moves_a_pin_by_what_it_says(addon, monkeypatch
     moved = np.array(pin.matrix_world.translation) - start
     assert tuple(pin.location) == (0.0, 0.0, 0.0) and item[point_key] != point
     assert moved[1] == pytest.approx(0.3, abs=0.06) and abs(moved[0]) < 0.06
+
+
+def test_a_file_with_a_pin_an_older_version_left_off_its_point_keeps_the_pin_on_it(addon, tmp_path):
+    """An older version let a pin's Empty be moved off its point (it moved nothing): opened now,
+    the pin goes back on its point, and moving the owner alone does not bind it anew (it went
+    from point 38 to 83 with the first update that moved it)."""
+    point_key = addon.shapedeform_addon.rig_format.PIN_POINT
+    obj, item, pin = pinned_figure()
+    point = item[point_key]
+    path, name = str(tmp_path / "older.blend"), obj.name
+    addon_utils.disable(ADDON_MODULE, default_set=True)  # nothing of this version sees the move
+    try:
+        pin.location = (0.4, 0.3, 0.0)
+        bpy.context.view_layer.update()
+        bpy.ops.wm.save_as_mainfile(filepath=path)
+    finally:
+        addon_utils.enable(ADDON_MODULE, default_set=True)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects[name]
+    item = next(i for i in obj.shapedeform.handles if i.object.shapedeform.pin_kind == "OVERLAP")
+    assert tuple(item.object.location) == (0.0, 0.0, 0.0)
+    obj.location.x += 0.5
+    bpy.context.view_layer.update()
+    assert item[point_key] == point

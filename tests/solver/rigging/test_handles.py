@@ -163,7 +163,7 @@ def test_a_location_lifted_in_front_of_the_shape_goes_on_the_layer_in_front():
     """Where one piece is left on the plane and the other lifted over it, a location on the
     plane is nearest the one left there; lifted past every point (drag.in_front) it goes on
     the one in front, whichever that is. Off the shape, ``snap`` puts it on the nearest point."""
-    from solver.rigging.drag import in_front
+    from solver.rigging.drag import above_every_layer
     from solver.rigging.handles import place
 
     points, triangles, pieces = puppet()
@@ -176,7 +176,7 @@ def test_a_location_lifted_in_front_of_the_shape_goes_on_the_layer_in_front():
         on_plane = np.array([1.5, 0.5, 0.0])
         _, _, triangle = place(plane, np.eye(4), on_plane, flat, flat, triangles, posed_heights=heights)
         assert pieces[triangles[triangle, 0]] != front  # on the plane: the piece left there
-        lifted = in_front(on_plane, shown, plane.normal)
+        lifted = above_every_layer(on_plane, shown, plane.normal)
         point, _, triangle = place(plane, np.eye(4), lifted, flat, flat, triangles, posed_heights=heights)
         assert pieces[triangles[triangle, 0]] == front
         np.testing.assert_allclose(plane.to_3d(point[None])[0], on_plane, atol=1e-12)
