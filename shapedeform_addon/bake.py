@@ -29,6 +29,7 @@ import hashlib
 import bpy
 import numpy as np
 from bpy.props import IntProperty
+from mathutils import Euler, Matrix, Quaternion, Vector
 
 from ..solver.wording import by_count
 from . import compat, handlers, rig, rig_format
@@ -143,65 +144,146 @@ def clear(obj):
 # solves with the Render one). Pins' are rig_format.PIN_SETTINGS.
 BAKED_SETTINGS = tuple(f"shapedeform.{name}" for name in ("weight_laplacian", "weight_mvc", "weight_edge",
                                                          "preserve_area", "prevent_flips", "render_iterations"))
-# A handle's own transform (a pin's is not read: it rides on its point).
-HANDLE_TRANSFORM = ("location", "rotation_mode", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
-                    "scale", "delta_location", "delta_rotation_euler", "delta_rotation_quaternion", "delta_scale")
+# A handle's own transform (a pin's is not read: it rides on its point): where it is and its
+# size, and how it turns, which its rotation mode's values and the delta rotation make together.
+HANDLE_LOCATION_SCALE = ("location", "scale", "delta_location", "delta_scale")
+HANDLE_ROTATION = ("rotation_mode", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
+                   "delta_rotation_euler", "delta_rotation_quaternion")
+HANDLE_TRANSFORM = HANDLE_LOCATION_SCALE + HANDLE_ROTATION
 # What of a keyframe sets the curve: its place, its Bezier handles, how it runs to the next.
 _KEYFRAME_FIELDS = (("co", 2, np.float32), ("handle_left", 2, np.float32), ("handle_right", 2, np.float32),
                     ("interpolation", 1, np.int32))
-# Values nothing animates count to this many decimals: Apply Transform on the owner gives its
-# handles' transforms back in rig space with rounding errors (4.7e-8 measured), which move nothing.
-_DECIMALS = 5
+# Numbers that no key sets are the same within this (relative and absolute): Apply Transform on
+# the owner gives its handles' transforms back in rig space with rounding errors (4.7e-8
+# measured), which move nothing; values rounded to a fixed step changed wherever such an error
+# crossed a step (-0.70000503 to -0.70000499).
+TOLERANCE = 1e-5
+
+
+class _Source:
+    """What a bake is made from, as :func:`fingerprint` gathers it: ``parts`` that must stay
+    exactly as they are (keys, drivers, choices, names of what each number is), and ``numbers``
+    (float values no key sets), which may move by rounding errors."""
+
+    def __init__(self):
+        self.parts = []
+        self.numbers = []
+
+    def add(self, label, value):
+        """Add ``value`` (one component of a property), ``label`` saying what it is."""
+        if isinstance(value, float):
+            self.parts.append(label)
+            self.numbers.append(value)
+        else:
+            self.parts.append((label, value))
+
+    def digest(self):
+        parts = [part if isinstance(part, bytes) else repr(part).encode() for part in self.parts]
+        return hashlib.blake2b(b"\0".join(parts), digest_size=16).hexdigest()
 
 
 def fingerprint(obj):
-    """A digest of what owner ``obj``'s rig makes its bake from: the rig's settings, the handles
-    (the points each holds, and what sets their transforms), the pins (their points and
-    amounts), and the frames its bake holds (the names of its keys).
+    """What owner ``obj``'s rig makes its bake from: the rig's settings, the handles (the
+    points each holds, and what sets their transforms), the pins (their points and amounts),
+    and the frames its bake holds (the names of its keys).
 
     What is keyed or driven counts by its keys (place, Bezier handles, interpolation) and
     drivers, what is not by its value, so changing frames, saving and undo leave it as it was.
-    Cheap enough for a panel's draw: no frame is evaluated, keys are read in bulk (0.2 ms for
-    two handles; 3 ms for ten, eight of them keyed on each of 250 frames).
+    A rotation no key sets counts by the turn it makes, however its values write it (Apply
+    Transform writes -q for a quaternion q, -pi for an Euler angle of pi). Cheap enough for a
+    panel's draw: no frame is evaluated, keys are read in bulk (0.2 ms for two handles; 3 ms
+    for ten, eight of them keyed on each of 250 frames).
 
     Returns
     -------
-    str
-        Hexadecimal; it changes when anything that changes the bake's poses does, as far as the
-        rig can tell (not the objects handles are parented or constrained to, nor NLA strips
-        moved).
+    digest : str
+        Hexadecimal, of everything but the numbers no key sets (and of what each number is).
+    numbers : (k,) float64 ndarray
+        Those numbers; compared within :data:`TOLERANCE` (:func:`is_out_of_date`).
+
+    Together they change when anything that changes the bake's poses does, as far as the rig
+    can tell (not the objects handles are parented or constrained to, nor NLA strips moved).
     """
+    source = _Source()
     key = obj.shapedeform.cage.data.shape_keys
-    parts = [repr(key.key_blocks.keys() if key is not None else []).encode(),
-             _what_sets(obj, BAKED_SETTINGS)]
+    source.parts.append(tuple(key.key_blocks.keys()) if key is not None else ())
+    _add_values(source, obj, BAKED_SETTINGS, _add_animation(source, obj, BAKED_SETTINGS))
     for empty, indices, offsets in rig_format.handle_items(obj):
-        parts += [indices.tobytes(), offsets.tobytes(), _what_sets(empty, HANDLE_TRANSFORM)]
+        source.parts += [indices.tobytes(), offsets.tobytes()]
+        _add_transform(source, empty, _add_animation(source, empty, HANDLE_TRANSFORM))
     for kind, names in rig_format.PIN_SETTINGS.items():
+        paths = tuple(f"shapedeform.{name}" for name in names)
         for empty, point in rig_format.pin_items(obj, kind):
-            parts += [f"{kind} {point}".encode(), _what_sets(empty, tuple(f"shapedeform.{n}" for n in names))]
-    return hashlib.blake2b(b"\0".join(parts), digest_size=16).hexdigest()
+            source.parts.append((kind, point))
+            _add_values(source, empty, paths, _add_animation(source, empty, paths))
+    return source.digest(), np.array(source.numbers, dtype=np.float64)
 
 
 def is_out_of_date(obj):
     """Whether owner ``obj`` plays a bake made from other handles, pins or settings than it now
     has (:func:`fingerprint`); False when not baked, or baked before bakes kept a digest."""
     made_from = rig_format.bake_source(obj.shapedeform.cage)
-    return made_from is not None and made_from != fingerprint(obj)
+    if made_from is None:
+        return False
+    digest, numbers = fingerprint(obj)
+    return digest != made_from[0] or not np.allclose(numbers, made_from[1], rtol=TOLERANCE, atol=TOLERANCE,
+                                                     equal_nan=True)
 
 
-def _what_sets(block, paths):
-    """Bytes of what sets ``block``'s properties ``paths``: the F-curves of the actions it plays
-    and its drivers, and, for each component no curve sets, its value."""
+def _add_animation(source, block, paths):
+    """Add what animates ``block``'s properties ``paths``: the F-curves of the actions it plays
+    and its drivers; returns the components they set, {(path, index)}."""
     animation = block.animation_data
-    bags = [compat.channelbag(action, slot) for action, slot in compat.played_actions(animation) if slot is not None]
-    keyed = [curve for bag in bags if bag is not None for curve in bag.fcurves if curve.data_path in paths]
-    driven = [curve for curve in (animation.drivers if animation is not None else ()) if curve.data_path in paths]
-    animated = {(curve.data_path, curve.array_index) for curve in keyed + driven}
-    values = [(path, i, round(value, _DECIMALS) + 0.0 if isinstance(value, float) else value)  # -0.0 is 0.0
-              for path in paths for i, value in enumerate(_components(block.path_resolve(path)))
-              if (path, i) not in animated]
-    return b"".join([_keys(curve) for curve in keyed] + [_keys(curve) + _driver(curve.driver) for curve in driven]
-                    + [repr(values).encode()])
+    if animation is None:
+        return set()
+    # In NLA tweak mode the action tweaked is the active one as well as its strip's: once.
+    holders = compat.action_holders(animation)[1 if animation.use_tweak_mode else 0:]
+    played = dict.fromkeys((holder.action, holder.action_slot) for holder in holders
+                           if holder.action is not None and holder.action_slot is not None)
+    bags = [compat.channelbag(action, slot) for action, slot in played]
+    keyed = [curve for bag in bags if bag is not None for curve in _in_order(bag.fcurves) if curve.data_path in paths]
+    driven = [curve for curve in animation.drivers if curve.data_path in paths]
+    source.parts += [_keys(curve) for curve in keyed] + [_keys(curve) + _driver(curve.driver) for curve in driven]
+    return {(curve.data_path, curve.array_index) for curve in keyed + driven}
+
+
+def _in_order(curves):
+    """``curves`` by property, whatever order channel groups put them in."""
+    return sorted(curves, key=lambda curve: (curve.data_path, curve.array_index))
+
+
+def _add_values(source, block, paths, animated):
+    """Add the value of each component of ``block``'s properties ``paths`` that no curve sets
+    (not in ``animated``)."""
+    for path in paths:
+        for i, value in enumerate(_components(block.path_resolve(path))):
+            if (path, i) not in animated:
+                source.add((path, i), value)
+
+
+def _add_transform(source, handle, animated):
+    """Add the values of ``handle``'s own transform that no curve sets (not in ``animated``):
+    while none sets its rotation, the turn it makes rather than the values that write it."""
+    paths = HANDLE_LOCATION_SCALE
+    if any(path in HANDLE_ROTATION for path, _ in animated):
+        paths += HANDLE_ROTATION
+    else:
+        for i, value in enumerate(np.ravel(_rotation(handle))):
+            source.add(("rotation", i), float(value))
+    _add_values(source, handle, paths, animated)
+
+
+def _rotation(block):
+    """The rotation (3, 3) ``block``'s rotation values make, its delta rotation's included, as
+    Blender makes it (quaternions normalised; no delta in axis-angle mode)."""
+    mode = block.rotation_mode
+    if mode == "QUATERNION":
+        own, delta = Quaternion(block.rotation_quaternion), Quaternion(block.delta_rotation_quaternion)
+        return delta.normalized().to_matrix() @ own.normalized().to_matrix()
+    if mode == "AXIS_ANGLE":
+        angle, *axis = block.rotation_axis_angle
+        return Matrix.Rotation(angle, 3, Vector(axis))
+    return Euler(block.delta_rotation_euler, mode).to_matrix() @ Euler(block.rotation_euler, mode).to_matrix()
 
 
 def _components(value):
@@ -223,9 +305,11 @@ def _keys(curve):
 
 
 def _driver(driver):
-    """Bytes of how ``driver`` computes its value (not of the values it reads)."""
+    """Bytes of how ``driver`` computes its value: not of the values it reads, nor of which
+    objects it reads them from (renaming one would change its name; the README says what
+    drivers read is not followed)."""
     variables = [(variable.name, variable.type,
-                  [(target.id.name_full if target.id is not None else "", target.data_path, target.transform_type,
+                  [(target.id_type, target.id is not None, target.data_path, target.transform_type,
                     target.transform_space, target.bone_target) for target in variable.targets])
                  for variable in driver.variables]
     return repr((driver.type, driver.expression, driver.use_self, variables)).encode()
@@ -423,7 +507,7 @@ class Bake:
             clear(obj)
             _write_keys(obj.shapedeform.cage, self.frames, self.captured[obj.name], self.times)
             obj.shapedeform[BAKED] = [self.frames[0], self.frames[-1], self.step_size]
-            rig_format.store_bake_source(obj.shapedeform.cage, fingerprint(obj))
+            rig_format.store_bake_source(obj.shapedeform.cage, *fingerprint(obj))
         self.captured.clear()
         self._restore_frame()  # show the baked result at the current frame
         return self.objects

@@ -252,9 +252,22 @@ def keep_in_rig_space(obj):
             continue
         own = affine_inverse(to_object) @ inverse @ np.array(handle.matrix_basis, dtype=np.float64)
         handle.matrix_parent_inverse = Matrix(to_object.tolist())
-        handle.matrix_basis = Matrix(own.tolist())
+        _set_own_transform(handle, Matrix(own.tolist()))
         changed = True
     return changed
+
+
+def _set_own_transform(handle, matrix):
+    """Set ``handle``'s own transform to ``matrix`` (4x4), an Euler rotation written as near the
+    angles it had as the new turn allows, as Blender's Apply Transform writes its children's:
+    setting the matrix writes the turn one way of those that make it (-pi for pi), and a key
+    on one of its channels (Z keyed, X and Y not) would then play with the others written
+    anew. (Quaternions and axis-angles come out of Apply Transform written one way already:
+    -q for q.)"""
+    euler = handle.rotation_euler.copy()
+    handle.matrix_basis = matrix
+    if handle.rotation_mode not in ("QUATERNION", "AXIS_ANGLE"):
+        handle.rotation_euler = handle.rotation_euler.to_matrix().to_euler(handle.rotation_mode, euler)
 
 
 def _add_pin(obj, rig, point, kind):

@@ -37,7 +37,8 @@ The cage, a mesh object parented to the owner (or, on a curve whose Path Animati
     the owner. A bake is shape keys on its mesh, its Key and action marked ``shapedeform_bake``
     (:mod:`.bake`; a copy of the mesh for a rig of its own has an action of its own:
     :func:`copy_cage_mesh`), the Key's ``shapedeform_baked_from`` a digest of what the bake was
-    made from (:func:`bake_source`; none in files from before it); the mesh's ``shapedeform_cage`` names the owner's cage object it
+    made from and ``shapedeform_baked_from_numbers`` its numbers (:func:`bake_source`; none in
+    files from before them); the mesh's ``shapedeform_cage`` names the owner's cage object it
     belongs to (:func:`.duplicates.own_cage_mesh`). In a library override of a rigged character the cage's mesh is a local
     copy of the library's, made the first time the rig poses, bakes or clears a bake
     (:func:`own_mesh`), and again when the library's rig was bound anew
@@ -68,6 +69,7 @@ MODIFIER_NAME = "Shape Deform"
 BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that plays
 BAKE_MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
 BAKE_SOURCE = "shapedeform_baked_from"  # on a bake's Key: a digest of what it was made from (.bake.fingerprint)
+BAKE_SOURCE_NUMBERS = "shapedeform_baked_from_numbers"  # ... and its numbers, compared within a tolerance
 # On the owner's settings: the name of the attribute marking the grease-pencil layers its rig
 # deforms ("" for all of them); the modifier is given the same name.
 RIGGED_KEY = "rigged_attribute"
@@ -693,19 +695,23 @@ def is_baked(obj):
     return bool(keys.get(BAKE_MARK)) or (BAKED in obj.shapedeform and len(keys.key_blocks) > 1)
 
 
-def store_bake_source(cage, digest):
-    """Keep on the bake ``cage`` plays (its Key) the ``digest`` of what it was made from
-    (:func:`.bake.fingerprint`). On the Key rather than the owner: it goes with the bake (Clear
-    Bake, a copy's cage), and stays in a library override's local cage mesh, where the owner's
-    ID properties come back from the library on reopening."""
-    cage.data.shape_keys[BAKE_SOURCE] = digest
+def store_bake_source(cage, digest, numbers):
+    """Keep on the bake ``cage`` plays (its Key) what it was made from (:func:`.bake.fingerprint`):
+    its ``digest`` and ``numbers`` ((k,) float64). On the Key rather than the owner: they go
+    with the bake (Clear Bake, a copy's cage), and stay in a library override's local cage mesh,
+    where the owner's ID properties come back from the library on reopening."""
+    key = cage.data.shape_keys
+    key[BAKE_SOURCE] = digest
+    key[BAKE_SOURCE_NUMBERS] = np.asarray(numbers, dtype=np.float64)
 
 
 def bake_source(cage):
-    """The digest :func:`store_bake_source` kept for the bake ``cage`` plays; None without a
-    bake, or for one made before digests were kept."""
+    """What :func:`store_bake_source` kept for the bake ``cage`` plays, (digest, (k,) float64
+    ndarray); None without a bake, or for one made before both were kept (not known)."""
     key = cage.data.shape_keys if cage is not None and cage.data is not None else None
-    return key.get(BAKE_SOURCE) if key is not None else None
+    if key is None or BAKE_SOURCE not in key or BAKE_SOURCE_NUMBERS not in key:
+        return None
+    return key[BAKE_SOURCE], np.asarray(key[BAKE_SOURCE_NUMBERS], dtype=np.float64)
 
 
 def owners(scene, depsgraph=None):

@@ -13,7 +13,7 @@ import bpy
 import numpy as np
 import pytest
 
-from mathutils import Vector
+from mathutils import Matrix, Vector
 
 import rig_checks as checks
 from extension_under_test import ADDON_MODULE
@@ -882,6 +882,135 @@ def test_an_unchanged_bake_stays_up_to_date_over_frames_undo_saving_and_the_comm
 
     del obj.shapedeform.cage.data.shape_keys[shapedeform.rig_format.BAKE_SOURCE]  # as saved before
     assert shapedeform.rig_format.is_baked(obj) and not shapedeform.bake.is_out_of_date(obj)
+
+
+def rig_to_apply(rotation_mode=None, rotation=None, location=None, scale=(1.5, 1.5, 1.5)):
+    """A grid turned and scaled by ``scale``, bound, a still handle (turned ``rotation`` in
+    ``rotation_mode``, at ``location``) and a keyed one, baked on frames 1-4; (owner, still).
+
+    (A scale that differs between axes skews a turned handle, which Apply Transform cannot
+    give back: the handle then moves, and its bake is out of date.)"""
+    obj = grid()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    still = checks.add_handle(obj, checks.world(obj, [-0.8, 0.1, 0.0]))
+    animate(checks.add_handle(obj, checks.world(obj, [0.8, 0.0, 0.0])), (0.0, 0.3, 0.0))
+    if rotation_mode is not None:
+        still.rotation_mode = rotation_mode
+        setattr(still, {"QUATERNION": "rotation_quaternion", "AXIS_ANGLE": "rotation_axis_angle"}.get(
+            rotation_mode, "rotation_euler"), rotation)
+    if location is not None:
+        still.location = location
+    obj.rotation_euler.z = 0.7
+    obj.scale = scale
+    bpy.context.view_layer.update()
+    assert addon_module().bake.bake_objects([obj], 1, 4) == [obj]
+    return obj, still
+
+
+def addon_module():
+    import importlib
+    return importlib.import_module(f"{ADDON_MODULE}.shapedeform_addon")
+
+
+def apply_rotation_and_scale(obj):
+    checks.select_only(obj)
+    assert bpy.ops.object.transform_apply(location=False, rotation=True, scale=True) == {"FINISHED"}
+    bpy.context.view_layer.update()
+
+
+@pytest.mark.parametrize("rotation_mode, rotation", [("QUATERNION", (-0.5, 0.0, 0.0, 0.8660254)),
+                                                     ("AXIS_ANGLE", (-2.5, 0.0, 0.0, 1.0)),
+                                                     ("XYZ", (0.0, 0.0, np.pi))])
+def test_apply_transform_on_the_owner_leaves_a_bake_up_to_date_however_it_writes_a_rotation(addon, rotation_mode,
+                                                                                              rotation):
+    """Apply Rotation & Scale on the owner writes an unkeyed handle's rotation another way of
+    those that make the same turn (-q for a quaternion q, 2.5 about -Z for -2.5 about Z, -pi
+    for pi): the digest hashed the values, and the bake said it was out of date. A rotation no
+    key sets counts by the turn it makes; an Euler rotation is written back near its angles."""
+    bake = addon.shapedeform_addon.bake
+    obj, still = rig_to_apply(rotation_mode, rotation)
+    apply_rotation_and_scale(obj)
+    assert not bake.is_out_of_date(obj)
+    if rotation_mode == "XYZ":
+        assert still.rotation_euler.z == pytest.approx(np.pi, abs=1e-5)
+    still.matrix_basis = Matrix.Rotation(0.01, 4, "Z") @ still.matrix_basis  # a turn, however small, is a change
+    bpy.context.view_layer.update()
+    assert bake.is_out_of_date(obj)
+
+
+def test_a_handle_keyed_on_one_euler_channel_keeps_its_pose_after_apply_transform_on_the_owner(addon):
+    """Apply Transform on the owner had the handles' rotations written from their matrices:
+    an Euler rotation came back as another set of angles making the same turn, (-0.64, 1.14,
+    Z + pi) for (2.5, 2.0, Z), and a handle keyed on Z alone then played its keyed Z with the
+    new X and Y, another turn. The angles are written back near what they were."""
+    obj, still = rig_to_apply("XYZ", (2.5, 2.0, 0.3))
+    still.keyframe_insert("rotation_euler", index=2, frame=1)
+    still.rotation_euler.z = 0.9
+    still.keyframe_insert("rotation_euler", index=2, frame=4)
+    scene = bpy.context.scene
+    scene.frame_set(4)
+    before = np.array(still.matrix_world)
+    apply_rotation_and_scale(obj)
+    scene.frame_set(1)
+    scene.frame_set(4)
+    np.testing.assert_allclose(np.array(still.matrix_world), before, atol=1e-5)
+
+
+def test_rounding_errors_of_apply_transform_leave_a_bake_up_to_date(addon):
+    """The digest hashed values rounded to 5 decimals: a rounding error of Apply Transform that
+    crossed a rounding step (x = -0.70000503 written back as -0.70000499) said the bake was out
+    of date. Numbers no key sets are compared within a tolerance (1e-5) instead."""
+    bake = addon.shapedeform_addon.bake
+    obj, still = rig_to_apply(location=(-0.70000503, 0.1, 0.0), scale=(1.7, 1.3, 1.0))
+    apply_rotation_and_scale(obj)
+    assert round(still.location.x, 5) != round(-0.70000503, 5)  # the error crossed a step
+    assert not bake.is_out_of_date(obj)
+    still.location.x += 1e-3
+    bpy.context.view_layer.update()
+    assert bake.is_out_of_date(obj)
+
+
+def test_renaming_what_drivers_read_leaves_a_bake_up_to_date(addon):
+    """The digest hashed the names of the objects a handle's drivers read: renaming one (a
+    controller, another handle) said the bake was out of date. Which objects drivers read is
+    left out, as what they read is (the README says so)."""
+    bake = addon.shapedeform_addon.bake
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    still, keyed = [item.object for item in obj.shapedeform.handles]
+    controller = bpy.data.objects.new("Controller", None)
+    bpy.context.scene.collection.objects.link(controller)
+    for handle, target, transform in ((still, controller, "LOC_X"), (keyed, still, "ROT_Z")):
+        driver = handle.driver_add("delta_location", 1).driver
+        driver.type = "SUM"
+        variable = driver.variables.new()
+        variable.type = "TRANSFORMS"
+        variable.targets[0].id, variable.targets[0].transform_type = target, transform
+    bpy.context.view_layer.update()
+    assert bake.bake_objects([obj], 1, 6) == [obj]
+    controller.name, still.name = "Controller renamed", "Left hand"
+    assert not bake.is_out_of_date(obj)
+
+
+def test_nla_tweak_mode_leaves_a_bake_up_to_date(addon):
+    """In NLA tweak mode the action tweaked is the active action as well as its strip's: the
+    digest counted its keys twice, and said the bake was out of date."""
+    bake = addon.shapedeform_addon.bake
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    animation = obj.shapedeform.handles[1].object.animation_data
+    track = animation.nla_tracks.new()
+    strip = track.strips.new("Walk", 1, animation.action)
+    strip.action_slot = animation.action_slot
+    animation.action = None
+    bpy.context.view_layer.update()
+    assert bake.bake_objects([obj], 1, 6) == [obj]
+    track.select = strip.select = True
+    animation.nla_tracks.active = track
+    animation.use_tweak_mode = True
+    bpy.context.view_layer.update()
+    assert animation.action is not None and not bake.is_out_of_date(obj)
 
 
 def test_the_bake_operator_bakes_the_preview_range_while_it_is_on(addon, tmp_path):
