@@ -31,6 +31,7 @@ import numpy as np
 from bpy.props import IntProperty
 from mathutils import Euler, Matrix, Quaternion, Vector
 
+from ..solver.rigging.plane import affine_inverse
 from ..solver.wording import by_count
 from . import compat, handlers, rig, rig_format
 from .errors import RigError, poll_reason
@@ -150,9 +151,22 @@ HANDLE_LOCATION_SCALE = ("location", "scale", "delta_location", "delta_scale")
 HANDLE_ROTATION = ("rotation_mode", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
                    "delta_rotation_euler", "delta_rotation_quaternion")
 HANDLE_TRANSFORM = HANDLE_LOCATION_SCALE + HANDLE_ROTATION
-# What of a keyframe sets the curve: its place, its Bezier handles, how it runs to the next.
-_KEYFRAME_FIELDS = (("co", 2, np.float32), ("handle_left", 2, np.float32), ("handle_right", 2, np.float32),
-                    ("interpolation", 1, np.int32))
+# How a handle hangs from its parent, besides whether it has one and the parent inverse (the
+# parent object itself is not followed).
+HANDLE_PARENTING = ("parent_type", "parent_bone", "parent_vertices")
+# What of a keyframe sets the curve: its place, its Bezier handles, how it runs to the next
+# (its interpolation); and where it runs by an easing, how.
+_KEYFRAME_FIELDS = (("co", 2, np.float32), ("handle_left", 2, np.float32), ("handle_right", 2, np.float32))
+_EASING_FIELDS = (("easing", 1, np.int32), ("back", 1, np.float32), ("amplitude", 1, np.float32),
+                  ("period", 1, np.float32))
+_BEZIER = 2  # Keyframe.interpolation 'BEZIER' as foreach_get gives it: the easings come after it
+# Properties of constraints, F-curve modifiers, NLA strips and driver targets that are no
+# setting: what only the interface shows, and Set Inverse's request, which the next evaluation
+# carries out (writing the inverse, which counts).
+_NOT_SETTINGS = frozenset({"rna_type", "name", "select", "active", "show_expanded", "set_inverse_pending"})
+# An NLA strip's influence and time are worked out on each frame (from its blend in and out,
+# and its frames) unless animated, and then their curves count.
+_STRIP_CONTROLS = frozenset({"influence", "strip_time"})
 # Numbers that no key sets are the same within this (relative and absolute): Apply Transform on
 # the owner gives its handles' transforms back in rig space with rounding errors (4.7e-8
 # measured), which move nothing; values rounded to a fixed step changed wherever such an error
@@ -184,15 +198,19 @@ class _Source:
 
 def fingerprint(obj):
     """What owner ``obj``'s rig makes its bake from: the rig's settings, the handles (the
-    points each holds, and what sets their transforms), the pins (their points and amounts),
-    and the frames its bake holds (the names of its keys).
+    points each holds, and what sets their transforms: their own, their parenting and
+    constraints), the pins (their points and amounts), and the frames its bake holds (the
+    names of its keys).
 
-    What is keyed or driven counts by its keys (place, Bezier handles, interpolation) and
-    drivers, what is not by its value, so changing frames, saving and undo leave it as it was.
+    What is keyed or driven counts by its drivers and keys (place, Bezier handles,
+    interpolation and easing; the curves' modifiers; the NLA tracks and strips that play them,
+    and how), what is not by its value, so changing frames, saving and undo leave it as it was.
     A rotation no key sets counts by the turn it makes, however its values write it (Apply
-    Transform writes -q for a quaternion q, -pi for an Euler angle of pi). Cheap enough for a
-    panel's draw: no frame is evaluated, keys are read in bulk (0.2 ms for two handles; 3 ms
-    for ten, eight of them keyed on each of 250 frames).
+    Transform writes -q for a quaternion q, -pi for an Euler angle of pi). Objects that
+    drivers, constraints and parents name count only by being named (renaming one changes
+    nothing), and what they do is not followed. Cheap enough for a panel's draw: no frame is
+    evaluated, keys are read in bulk (0.2 ms for two handles; 3 ms for ten, eight of them keyed
+    on each of 250 frames).
 
     Returns
     -------
@@ -202,20 +220,21 @@ def fingerprint(obj):
         Those numbers; compared within :data:`TOLERANCE` (:func:`is_out_of_date`).
 
     Together they change when anything that changes the bake's poses does, as far as the rig
-    can tell (not the objects handles are parented or constrained to, nor NLA strips moved).
+    can tell.
     """
     source = _Source()
     key = obj.shapedeform.cage.data.shape_keys
     source.parts.append(tuple(key.key_blocks.keys()) if key is not None else ())
-    _add_values(source, obj, BAKED_SETTINGS, _add_animation(source, obj, BAKED_SETTINGS))
+    _add_values(source, obj, BAKED_SETTINGS, _add_animation(source, obj, BAKED_SETTINGS.__contains__))
+    to_rig = affine_inverse(rig_format.rig_to_object(obj))
     for empty, indices, offsets in rig_format.handle_items(obj):
         source.parts += [indices.tobytes(), offsets.tobytes()]
-        _add_transform(source, empty, _add_animation(source, empty, HANDLE_TRANSFORM))
+        _add_handle(source, empty, obj, to_rig)
     for kind, names in rig_format.PIN_SETTINGS.items():
         paths = tuple(f"shapedeform.{name}" for name in names)
         for empty, point in rig_format.pin_items(obj, kind):
             source.parts.append((kind, point))
-            _add_values(source, empty, paths, _add_animation(source, empty, paths))
+            _add_values(source, empty, paths, _add_animation(source, empty, paths.__contains__))
     return source.digest(), np.array(source.numbers, dtype=np.float64)
 
 
@@ -230,21 +249,92 @@ def is_out_of_date(obj):
                                                      equal_nan=True)
 
 
-def _add_animation(source, block, paths):
-    """Add what animates ``block``'s properties ``paths``: the F-curves of the actions it plays
-    and its drivers; returns the components they set, {(path, index)}."""
+def _sets_handle(path):
+    """Whether a handle's property ``path`` sets where it is: its transform, its constraints'."""
+    return path in HANDLE_TRANSFORM or path.startswith("constraints[")
+
+
+def _add_handle(source, handle, owner, to_rig):
+    """Add what sets where ``handle`` is: what animates it, its own transform, its parenting
+    (its parent inverse in rig space, ``to_rig`` (4, 4) from ``owner``'s space, while it hangs
+    from the owner: Apply Transform on the owner changes both), its constraints."""
+    animated = _add_animation(source, handle, _sets_handle)
+    _add_transform(source, handle, animated)
+    source.parts.append(("parented", handle.parent is not None))
+    _add_values(source, handle, HANDLE_PARENTING, animated)
+    inverse = np.array(handle.matrix_parent_inverse, dtype=np.float64)
+    if handle.parent == owner and handle.parent_type == "OBJECT":
+        inverse = to_rig @ inverse
+    for i, value in enumerate(inverse.ravel()):
+        source.add(("parent inverse", i), float(value))
+    for i, constraint in enumerate(handle.constraints):
+        _add_settings(source, ("constraint", i, constraint.type), constraint, animated,
+                      f"{constraint.path_from_id()}.")
+
+
+def _add_animation(source, block, wanted):
+    """Add what animates ``block``'s properties whose paths ``wanted`` (a callable) accepts: the
+    actions it plays and how (active, or in NLA tracks and strips), their F-curves of those
+    properties, its drivers of them; returns the components they set, {(path, index)}."""
     animation = block.animation_data
     if animation is None:
         return set()
-    # In NLA tweak mode the action tweaked is the active one as well as its strip's: once.
-    holders = compat.action_holders(animation)[1 if animation.use_tweak_mode else 0:]
-    played = dict.fromkeys((holder.action, holder.action_slot) for holder in holders
-                           if holder.action is not None and holder.action_slot is not None)
-    bags = [compat.channelbag(action, slot) for action, slot in played]
-    keyed = [curve for bag in bags if bag is not None for curve in _in_order(bag.fcurves) if curve.data_path in paths]
-    driven = [curve for curve in animation.drivers if curve.data_path in paths]
-    source.parts += [_keys(curve) for curve in keyed] + [_keys(curve) + _driver(curve.driver) for curve in driven]
-    return {(curve.data_path, curve.array_index) for curve in keyed + driven}
+    played = {}  # each (action, slot) played: its number and its curves of wanted properties
+    strips = compat.nla_strips(animation)
+    # In NLA tweak mode the action tweaked is the active one as well as its strip's: it counts
+    # as the strip's.
+    if animation.action is not None and not animation.use_tweak_mode:
+        number = _played(played, animation, wanted)
+        if number is not None and strips:  # it blends over them so (with none, it plays as it is)
+            source.parts.append(("action", number, animation.action_blend_type, animation.action_extrapolation))
+            source.add("action influence", animation.action_influence)
+    _add_nla(source, animation, strips, played, wanted)
+    driven = [curve for curve in animation.drivers if wanted(curve.data_path)]
+    curves = [curve for _, keyed in played.values() for curve in keyed] + driven
+    for curve in curves:
+        _add_curve(source, curve)
+        if curve.driver is not None:
+            _add_driver(source, curve.driver)
+    return {(curve.data_path, curve.array_index) for curve in curves}
+
+
+def _played(played, holder, wanted):
+    """The number ``holder`` (AnimData, or an NLA strip) plays in ``played``, the actions played
+    (each (action, slot) once, with its curves of wanted properties read once); None when it
+    plays none of them."""
+    if holder.action is None or holder.action_slot is None:
+        return None
+    key = (holder.action, holder.action_slot)
+    if key not in played:
+        bag = compat.channelbag(*key)
+        keyed = [curve for curve in bag.fcurves if wanted(curve.data_path)] if bag is not None else []
+        played[key] = (len(played), _in_order(keyed))
+    number, keyed = played[key]
+    return number if keyed else None
+
+
+def _add_nla(source, animation, strips, played, wanted):
+    """Add how ``animation``'s NLA (``strips``, :func:`.compat.nla_strips`) plays the actions
+    that set wanted properties: the tracks holding a strip of one, whole (each strip's settings
+    and action's number in ``played``)."""
+    tracks = {}
+    for track, strip in strips:
+        tracks.setdefault(track, []).append(strip)
+    counted = False
+    for i, (track, its_strips) in enumerate(tracks.items()):
+        numbers = [_played(played, strip, wanted) for strip in its_strips]
+        if all(number is None for number in numbers):
+            continue  # plays nothing the rig reads
+        counted = True
+        source.parts.append(("track", i, track.mute, track.is_solo))
+        for strip, number in zip(its_strips, numbers):
+            source.parts.append(("strip", number))
+            controls = [curve for curve in strip.fcurves if curve.data_path in _STRIP_CONTROLS]
+            for curve in controls:
+                _add_curve(source, curve)
+            _add_settings(source, "strip", strip, skip=_STRIP_CONTROLS)
+    if counted:  # a solo track elsewhere keeps these from playing
+        source.parts.append(("nla", animation.use_nla, any(track.is_solo for track in animation.nla_tracks)))
 
 
 def _in_order(curves):
@@ -259,6 +349,25 @@ def _add_values(source, block, paths, animated):
         for i, value in enumerate(_components(block.path_resolve(path))):
             if (path, i) not in animated:
                 source.add((path, i), value)
+
+
+def _add_settings(source, label, struct, animated=frozenset(), prefix="", skip=frozenset()):
+    """Add the settings of ``struct`` (a constraint, an F-curve modifier, an NLA strip, a
+    driver's target): the value of each component of its editable properties no curve sets (not
+    in ``animated``, its paths starting with ``prefix``), but for its collections and the
+    properties named in ``skip``, and only whether its pointers are set (an object is named,
+    not followed)."""
+    source.parts.append((label, struct.bl_rna.identifier))
+    for prop in struct.bl_rna.properties:
+        name = prop.identifier
+        if prop.is_readonly or prop.type == "COLLECTION" or name in _NOT_SETTINGS or name in skip:
+            continue
+        value = getattr(struct, name)
+        if prop.type == "POINTER":
+            value = value is not None
+        for i, component in enumerate(_components(value)):
+            if (prefix + name, i) not in animated:
+                source.add(name, component)
 
 
 def _add_transform(source, handle, animated):
@@ -287,32 +396,41 @@ def _rotation(block):
 
 
 def _components(value):
-    """A property's value as a tuple of its components (one for a number, a flag or an enum)."""
+    """A property's value as a flat tuple of its components: one for a number, a flag, an enum
+    or a set of enum flags (sorted), a matrix's row by row."""
+    if isinstance(value, Matrix):
+        return tuple(component for row in value for component in row)
+    if isinstance(value, (set, frozenset)):
+        return (tuple(sorted(value)),)
     return tuple(value) if hasattr(value, "__len__") and not isinstance(value, str) else (value,)
 
 
-def _keys(curve):
-    """Bytes of what ``curve`` (an F-curve) sets: which property, its keyframes (read in bulk),
-    its extrapolation, whether muted, its modifiers' types."""
+def _add_curve(source, curve):
+    """Add what ``curve`` (an F-curve) sets: which property, its keyframes (read in bulk, how
+    they ease where any does), its extrapolation, whether muted, its modifiers' settings."""
     points = curve.keyframe_points
-    fields = []
-    for name, width, dtype in _KEYFRAME_FIELDS:
+    interpolation = np.empty(len(points), dtype=np.int32)
+    points.foreach_get("interpolation", interpolation)
+    fields = _KEYFRAME_FIELDS + (_EASING_FIELDS if np.any(interpolation > _BEZIER) else ())
+    source.parts.append((curve.data_path, curve.array_index, curve.extrapolation, curve.mute))
+    source.parts.append(interpolation.tobytes())
+    for name, width, dtype in fields:
         values = np.empty(len(points) * width, dtype=dtype)
         points.foreach_get(name, values)
-        fields.append(values.tobytes())
-    head = (curve.data_path, curve.array_index, curve.extrapolation, curve.mute, [m.type for m in curve.modifiers])
-    return repr(head).encode() + b"".join(fields)
+        source.parts.append(values.tobytes())
+    for i, modifier in enumerate(curve.modifiers):
+        _add_settings(source, ("modifier", i), modifier)
 
 
-def _driver(driver):
-    """Bytes of how ``driver`` computes its value: not of the values it reads, nor of which
-    objects it reads them from (renaming one would change its name; the README says what
-    drivers read is not followed)."""
-    variables = [(variable.name, variable.type,
-                  [(target.id_type, target.id is not None, target.data_path, target.transform_type,
-                    target.transform_space, target.bone_target) for target in variable.targets])
-                 for variable in driver.variables]
-    return repr((driver.type, driver.expression, driver.use_self, variables)).encode()
+def _add_driver(source, driver):
+    """Add how ``driver`` computes its value: not the values it reads, nor which objects it
+    reads them from (renaming one would change its name; the README says what drivers read is
+    not followed)."""
+    source.parts.append((driver.type, driver.expression, driver.use_self))
+    for variable in driver.variables:
+        source.parts.append((variable.name, variable.type))
+        for target in variable.targets:
+            _add_settings(source, "target", target)
 
 
 # -- the bake ---------------------------------------------------------------------------------

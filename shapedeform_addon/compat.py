@@ -46,7 +46,13 @@ def action_holders(animation):
     and every NLA strip, those inside meta strips included."""
     if animation is None:
         return []
-    return [animation] + [strip for track in animation.nla_tracks for strip in _strips(track.strips)]
+    return [animation] + [strip for _, strip in nla_strips(animation)]
+
+
+def nla_strips(animation):
+    """(track, strip) for every NLA strip of ``animation`` (an ID's AnimData), those inside
+    meta strips included, track by track."""
+    return [(track, strip) for track in animation.nla_tracks for strip in _strips(track.strips)]
 
 
 def played_actions(animation):

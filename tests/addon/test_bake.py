@@ -1013,6 +1013,124 @@ def test_nla_tweak_mode_leaves_a_bake_up_to_date(addon):
     assert animation.action is not None and not bake.is_out_of_date(obj)
 
 
+def location_y_curve(handle):
+    """The F-curve of ``handle``'s location Y in the action it plays (active, or its strip's)."""
+    from bpy_extras import anim_utils
+
+    animation = handle.animation_data
+    holder = animation if animation.action is not None else animation.nla_tracks[0].strips[0]
+    bag = anim_utils.action_get_channelbag_for_slot(holder.action, holder.action_slot)
+    return next(curve for curve in bag.fcurves if curve.data_path == "location" and curve.array_index == 1)
+
+
+def in_nla(handle):
+    """Push ``handle``'s action down to an NLA strip; (track, strip)."""
+    animation = handle.animation_data
+    track = animation.nla_tracks.new()
+    strip = track.strips.new("Move", 1, animation.action)
+    strip.action_slot = animation.action_slot
+    animation.action = None
+    return track, strip
+
+
+def ease(handle, interpolation, **settings):
+    for point in location_y_curve(handle).keyframe_points:
+        point.interpolation = interpolation
+        for name, value in settings.items():
+            setattr(point, name, value)
+
+
+def animate_influence(strip):
+    strip.use_animated_influence = True
+    strip.influence = 0.3
+    strip.keyframe_insert("influence", frame=1)
+
+
+def add_noise(handle):
+    location_y_curve(handle).modifiers.new("NOISE").strength = 0.0
+
+
+def stronger_noise(handle, _):
+    location_y_curve(handle).modifiers[0].strength = 2.0
+
+
+def limit_y(handle, max_y=0.1):
+    constraint = handle.constraints.new("LIMIT_LOCATION")
+    constraint.use_max_y, constraint.max_y, constraint.owner_space = True, max_y, "LOCAL"
+    return constraint
+
+
+# What changes a bake made again (each moved the baked poses 0.28-1.02), after what setup.
+SETUPS = {
+    "noise": (add_noise, stronger_noise),
+    "easing": (lambda h: ease(h, "BOUNCE", easing="EASE_IN"), lambda h, _: ease(h, "BOUNCE", easing="EASE_OUT")),
+    "back": (lambda h: ease(h, "BACK", back=1.0), lambda h, _: ease(h, "BACK", back=5.0)),
+    "strip influence": (in_nla, lambda h, nla: animate_influence(nla[1])),
+    "track mute": (in_nla, lambda h, nla: setattr(nla[0], "mute", True)),
+    "strip scale": (in_nla, lambda h, nla: setattr(nla[1], "scale", 2.0)),
+    "strip blend": (in_nla, lambda h, nla: setattr(nla[1], "blend_type", "ADD")),
+    "constraint added": (lambda h: None, lambda h, _: limit_y(h)),
+    "constraint setting": (limit_y, lambda h, constraint: setattr(constraint, "max_y", 0.3)),
+    "parent cleared": (lambda h: None, lambda h, _: setattr(h, "parent", None)),
+}
+
+
+@pytest.mark.parametrize("what", SETUPS)
+def test_a_bake_says_it_is_out_of_date_once_how_its_keys_play_or_its_handles_hang_changed(addon, what):
+    """A curve's modifiers' settings (only their types counted), its keys' easing, the NLA
+    tracks and strips playing them, a constraint on a handle and its parent went unnoticed:
+    a bake made again moved 0.28-1.02, and the sidebar said nothing."""
+    bake = addon.shapedeform_addon.bake
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    keyed = obj.shapedeform.handles[1].object
+    setup, change = SETUPS[what]
+    made = setup(keyed)
+    bpy.context.view_layer.update()
+    assert bake.bake_objects([obj], 1, 6) == [obj]
+    for frame in (3, 6, 1):
+        bpy.context.scene.frame_set(frame)
+        assert not bake.is_out_of_date(obj), frame
+    change(keyed, made)
+    bpy.context.view_layer.update()
+    assert bake.is_out_of_date(obj)
+
+
+def test_a_bake_of_handles_played_by_the_nla_constrained_and_eased_stays_up_to_date(addon, tmp_path):
+    """What a bake now counts of how keys play (strips blending in and out, an animated
+    influence, a constraint's own inverse, modifiers, easing) leaves an unchanged bake up to
+    date over frames, undo and reopening."""
+    bake = addon.shapedeform_addon.bake
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    still, keyed = [item.object for item in obj.shapedeform.handles]
+    location_y_curve(keyed).modifiers.new("NOISE").strength = 0.1
+    ease(keyed, "ELASTIC", amplitude=0.5)
+    track, strip = in_nla(keyed)
+    strip.blend_in = strip.blend_out = 2.0
+    follow = still.constraints.new("CHILD_OF")
+    follow.target = keyed
+    follow.inverse_matrix = Matrix.Translation((0.1, 0.0, 0.0))
+    limit_y(keyed).influence = 0.5
+    bpy.context.view_layer.update()
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    for frame in (2, 5, 1, 7, 4):
+        bpy.context.scene.frame_set(frame)
+        assert not bake.is_out_of_date(obj), frame
+    bpy.ops.ed.undo_push(message="baked")
+    keyed.constraints[0].influence = 0.6
+    bpy.ops.ed.undo_push(message="changed")
+    assert bake.is_out_of_date(obj)
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    assert not bake.is_out_of_date(bpy.data.objects["Grid"])
+    path = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    bpy.context.scene.frame_set(3)
+    assert not bake.is_out_of_date(bpy.data.objects["Grid"])
+
+
 def test_the_bake_operator_bakes_the_preview_range_while_it_is_on(addon, tmp_path):
     """Blender's Bake Action bakes the preview range while it is on; Bake Deformation baked the
     scene's frame range (1-250 for a preview range of 2-5). Frames given still win, and the
