@@ -127,6 +127,13 @@ def _write_keys(cage, frames, captured, times):
         _add_fcurve(bag, path, *zip(*keys))
 
 
+def baked_frames(obj):
+    """(first frame, last frame, step) of the bake owner ``obj`` plays, from its mark; None when
+    it has none (not baked, or a library override whose library's rig was not baked)."""
+    mark = obj.shapedeform.get(BAKED)
+    return tuple(int(value) for value in mark) if mark is not None and len(mark) == 3 else None
+
+
 def clear(obj):
     """Remove the bake of ``obj``'s rig; returns how many baked frames were removed."""
     owner = rig_format.owner_of(obj)

@@ -122,7 +122,10 @@ class SHAPEDEFORM_PT_animation(_RigSubPanel, bpy.types.Panel):
         if bake.is_out_of_date(obj):
             col.label(text="Out of date: handles or settings changed since the bake", icon="ERROR")
         row = col.row(align=True)
-        row.operator("shapedeform.bake", text="Bake Again", icon="REC")
+        again = row.operator("shapedeform.bake", text="Bake Again", icon="REC")
+        frames = bake.baked_frames(obj)
+        if frames is not None:  # the bake it replaces: a farm's full range, not the preview range on now
+            again.frame_start, again.frame_end, again.step = frames
         row.operator("shapedeform.clear_bake", icon="TRASH")
 
 

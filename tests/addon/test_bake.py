@@ -7,6 +7,7 @@ changes nothing; outside the range every kind holds the nearest baked frame; the
 Python entry point imports."""
 
 from functools import partial
+from types import SimpleNamespace
 
 import addon_utils
 import bpy
@@ -1155,3 +1156,34 @@ def test_the_bake_operator_bakes_the_preview_range_while_it_is_on(addon, tmp_pat
     assert addon.shapedeform_addon.cli.main(["bake"]) == 0
     bpy.ops.wm.open_mainfile(filepath=path)
     assert list(bpy.data.objects["Grid"].shapedeform["baked"])[:2] == [1, 8]
+
+
+def bake_again():
+    """Press the sidebar's Bake Again: the bake operator with the properties the panel gives it."""
+    from test_ui_overlay import RecordingLayout
+
+    layout = RecordingLayout()
+    bpy.types.SHAPEDEFORM_PT_animation.draw(SimpleNamespace(layout=layout), bpy.context)
+    properties = next(vars(given) for idname, given in layout.buttons if idname == "shapedeform.bake")
+    return bpy.ops.shapedeform.bake(**properties)
+
+
+def test_bake_again_bakes_the_frames_and_step_of_the_bake_it_replaces(addon):
+    """Bake Again pressed the bake operator with nothing given: a bake of frames 1-12 every 2
+    came back as 1-40 every 1, and a farm's bake of 1-40 as 5-8 while the preview range was on.
+    It gives the operator the baked frames and step; the first bake keeps the scene's."""
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 40
+    checks.select_only(obj)
+    assert bake_again() == {"FINISHED"}  # the first bake: Bake Deformation, the scene's frames
+    assert list(obj.shapedeform["baked"]) == [1, 40, 1]
+    addon.shapedeform_addon.bake.bake_objects([obj], 1, 12, step=2)
+    assert bake_again() == {"FINISHED"}
+    assert list(obj.shapedeform["baked"]) == [1, 12, 2]
+    addon.shapedeform_addon.bake.bake_objects([obj], 1, 40)
+    scene.use_preview_range = True
+    scene.frame_preview_start, scene.frame_preview_end = 5, 8
+    assert bake_again() == {"FINISHED"}
+    assert list(obj.shapedeform["baked"]) == [1, 40, 1]
