@@ -117,7 +117,7 @@ def _write_keys(cage, frames, captured, times):
     basis.data.foreach_set("co", rig_format.rest_of(cage).ravel())
     key = cage.data.shape_keys
     key[MARK] = True
-    bag = _channelbag(key, "KEY", f"{cage.name} Shape Deform Bake")
+    bag = _channelbag(key, "KEY", rig_format.bake_action_name(cage))
     for i, (frame, points) in enumerate(zip(frames, captured)):
         block = cage.shape_key_add(name=key_name(frame), from_mix=False)
         block.data.foreach_set("co", points.ravel())
@@ -280,15 +280,19 @@ def forget_updated(depsgraph):
 
 
 def is_out_of_date(obj):
-    """Whether owner ``obj`` plays a bake made from other handles, pins or settings than it now
-    has (:func:`fingerprint`); False when not baked, or baked before bakes kept a digest.
+    """Whether the rig of ``obj`` (its owner, a handle, or a duplicate following it) plays a
+    bake made from other handles, pins or settings than it now has (:func:`fingerprint`); False
+    when not baked, or baked before bakes kept a digest.
 
     The answer is kept until something it depends on is updated (:data:`_out_of_date`): a
     script's change counts once the depsgraph has evaluated it (``view_layer.update()``), as
     evaluated data does."""
-    uid = obj.session_uid
+    owner = rig_format.owner_of(obj)
+    if owner is None:
+        return False
+    uid = owner.session_uid
     if uid not in _out_of_date:
-        _out_of_date[uid] = _differs_from_bake(obj)
+        _out_of_date[uid] = _differs_from_bake(owner)
     return _out_of_date[uid]
 
 

@@ -38,7 +38,8 @@ def adopt_duplicated(obj):
             empty.shapedeform.rig = settings.cage.shapedeform.rig
         return False
     shared = settings.cage
-    cage = _cage_for(obj, shared, rig_format.copy_cage_mesh(shared.data))
+    cage = _cage_for(obj, shared, shared.data)
+    cage.data = rig_format.copy_cage_mesh(shared.data, cage)
     cage.shapedeform.rig = obj
     _number_islands_apart(obj, cage.data)
     settings.handle_collection = None  # the original's: this rig gets its own
@@ -168,7 +169,7 @@ def own_cage_mesh(obj):
         mesh[rig_format.CAGE_STAMP] = cage  # not stamped yet (an older file), or a copy made for this cage
         return False
     followers = follower_cages(obj)
-    mesh = rig_format.copy_cage_mesh(mesh)
+    mesh = rig_format.copy_cage_mesh(mesh, cage)
     for own in [cage, *followers]:
         own.data = mesh
     mesh[rig_format.CAGE_STAMP] = cage

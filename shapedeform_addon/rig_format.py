@@ -368,14 +368,22 @@ def own_mesh(cage):
     return mesh
 
 
-def copy_cage_mesh(mesh):
-    """A copy of the cage mesh ``mesh`` for a rig of its own, with a bake of its own.
+def bake_action_name(cage):
+    """The name of the action the bake of ``cage`` keys its shape keys in (Blender numbers it
+    where the name is taken)."""
+    return f"{cage.name} Shape Deform Bake"
+
+
+def copy_cage_mesh(mesh, cage):
+    """A copy of the cage mesh ``mesh`` for ``cage``, the cage object of a rig of its own, with a
+    bake of its own.
 
     Copying a mesh copies its shape keys, not the actions that key them: the two rigs' bakes
     would be one action, and retiming one's keys would retime the other's. Each bake action
     (marked :data:`BAKE_MARK`) the copy's Key plays, active or in the NLA, is replaced by a copy,
-    in the same slot and marked as well (so Clear Bake removes it with its Key); other actions
-    stay shared, as Blender's own copies leave them.
+    in the same slot, marked as well (so Clear Bake removes it with its Key) and named after
+    ``cage`` as its own bake's would be (:func:`bake_action_name`); other actions stay shared,
+    as Blender's own copies leave them.
     """
     copy = mesh.copy()
     key = copy.shape_keys
@@ -386,6 +394,7 @@ def copy_cage_mesh(mesh):
             continue
         if action not in copies:
             copies[action] = action.copy()
+            copies[action].name = bake_action_name(cage)
         holder.action = copies[action]
         if slot is not None:
             holder.action_slot = copies[action].slots[slot.identifier]

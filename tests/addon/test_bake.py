@@ -1245,3 +1245,48 @@ def test_whether_a_bake_is_out_of_date_is_worked_out_once_until_what_it_depends_
         assert not bake.is_out_of_date(obj)
         change()
         assert bake.is_out_of_date(bpy.data.objects["Grid"]) == out_of_date, change
+
+
+def test_a_duplicate_following_a_baked_rig_says_whether_the_rig_s_bake_is_out_of_date(addon):
+    """is_out_of_date on a duplicate that follows the rig (Alt+D) read the duplicate's own copy
+    of the rig's settings: it stayed up to date while the rig's changed. It reads the rig's
+    owner, as for a handle."""
+    bake = addon.shapedeform_addon.bake
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    assert bake.bake_objects([obj], 1, 6) == [obj]
+    checks.select_only(obj)
+    assert bpy.ops.object.duplicate_move_linked() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    follower = bpy.context.active_object
+    assert addon.shapedeform_addon.rig_format.is_follower(follower)
+    assert not bake.is_out_of_date(follower)
+    obj.shapedeform.weight_edge = 3.0
+    bpy.context.view_layer.update()
+    assert bake.is_out_of_date(follower) and bake.is_out_of_date(obj.shapedeform.handles[0].object)
+
+
+def test_a_copy_of_a_baked_rig_names_its_bake_action_after_its_own_cage(addon):
+    """A copy of a baked rig with a rig of its own got a copy of the bake action named after
+    the original's cage ("Grid Cage Shape Deform Bake.001"); it is named after its own cage, as
+    a bake of it makes it ("Grid Cage.001 Shape Deform Bake"), and so is the copy made for a
+    cage mesh two appended rigs shared."""
+    shapedeform = addon.shapedeform_addon
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    assert shapedeform.bake.bake_objects([obj], 1, 6) == [obj]
+    for o in [obj] + [item.object for item in obj.shapedeform.handles]:
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.object.duplicate() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    copy = next(o for o in bpy.context.selected_objects if o.type == "MESH")
+
+    def bake_action(o):
+        return o.shapedeform.cage.data.shape_keys.animation_data.action.name
+
+    assert (bake_action(obj), bake_action(copy)) == ("Grid Cage Shape Deform Bake", "Grid Cage.001 Shape Deform Bake")
+    shapedeform.bake.clear(copy)
+    copy.shapedeform.cage.data = obj.shapedeform.cage.data  # as two appends reusing data leave them
+    assert shapedeform.duplicates.own_cage_mesh(copy)
+    assert bake_action(copy) == "Grid Cage.001 Shape Deform Bake"
