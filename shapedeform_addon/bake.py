@@ -25,9 +25,11 @@ so, as Blender's physics caches flag themselves outdated.
 """
 
 import hashlib
+import traceback
 
 import bpy
 import numpy as np
+from bpy.app.handlers import persistent
 from bpy.props import IntProperty
 from mathutils import Euler, Matrix, Quaternion, Vector
 
@@ -250,8 +252,8 @@ def fingerprint(obj):
 # redraw, and working it out reads every key of every handle (20 ms for 30 handles keyed on 500
 # frames). This module owns it; an owner's answer is dropped by any evaluation that updates the
 # owner, its cage, handles or pins, and every answer by one that updates an action
-# (:func:`forget_updated`, from the depsgraph and frame change handlers), on loading a file,
-# undo and redo (handlers.py), and by baking the owner or clearing its bake.
+# (:func:`forget_updated`, from this module's depsgraph and frame change handlers), on loading a file,
+# undo and redo (its other handlers), and by baking the owner or clearing its bake.
 _out_of_date = {}
 
 
@@ -292,7 +294,11 @@ def is_out_of_date(obj):
         return False
     uid = owner.session_uid
     if uid not in _out_of_date:
-        _out_of_date[uid] = _differs_from_bake(owner)
+        try:
+            _out_of_date[uid] = _differs_from_bake(owner)
+        except Exception:  # saved data a script damaged (posing the rig says so): a panel's draw must not fail
+            traceback.print_exc()
+            _out_of_date[uid] = False
     return _out_of_date[uid]
 
 
@@ -894,6 +900,37 @@ class SHAPEDEFORM_OT_clear_bake(bpy.types.Operator):
         return {"FINISHED"}
 
 
-classes = (SHAPEDEFORM_OT_bake, SHAPEDEFORM_OT_clear_bake)
+@persistent
+def _forget_updated(_scene, depsgraph):
+    """Depsgraph update and frame change: :func:`forget_updated`."""
+    forget_updated(depsgraph)
 
-register, unregister = bpy.utils.register_classes_factory(classes)
+
+@persistent
+def _forget_all(*_args):
+    """A file opened, undo or redo: every answer goes (the data it read was replaced)."""
+    forget()
+
+
+# This module's cache's invalidation, registered with the classes (handlers.py poses rigs; it
+# does not know about bakes' answers).
+_HANDLERS = (("depsgraph_update_post", _forget_updated), ("frame_change_post", _forget_updated),
+             ("load_post", _forget_all), ("undo_post", _forget_all), ("redo_post", _forget_all))
+
+classes = (SHAPEDEFORM_OT_bake, SHAPEDEFORM_OT_clear_bake)
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register_classes()
+    for name, function in _HANDLERS:
+        getattr(bpy.app.handlers, name).append(function)
+
+
+def unregister():
+    for name, function in _HANDLERS:
+        functions = getattr(bpy.app.handlers, name)
+        if function in functions:
+            functions.remove(function)
+    _unregister_classes()
+    forget()

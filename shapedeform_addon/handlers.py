@@ -15,7 +15,7 @@ from contextlib import contextmanager
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bake, duplicates, handles, nodes, rig, rig_format
+from . import duplicates, handles, nodes, rig, rig_format
 from .errors import RigError
 from .sources import mesh
 
@@ -117,7 +117,6 @@ def on_depsgraph_update(scene, depsgraph):
     rig's list's active item. A pin moved off its point by hand is bound to the point it is
     left on (:func:`_pin_moved_by_hand`).
     """
-    bake.forget_updated(depsgraph)
     if _busy:
         return
     handles.follow_active_object(depsgraph.view_layer)
@@ -219,7 +218,6 @@ def _transforming():
 def on_frame_change(scene, depsgraph):
     """Frames changed: animated handles have new transforms (of every rig the scene shows, a
     collection it instances from elsewhere included)."""
-    bake.forget_updated(depsgraph)  # a frame change evaluates the edits made since the last update too
     if _busy:
         return
     # A frame stepped to stays on screen: solve it as a render would at once, rather than
@@ -263,7 +261,6 @@ def on_undo(*_args):
     """Undo or redo: rigs are rebuilt lazily from the data of the step restored; a pose it
     restored that a Viewport solve left short is refined as after any move."""
     rig.forget()
-    bake.forget()
     rig_format.forget_bound()
     _refine_later()
 
@@ -274,7 +271,6 @@ def on_load(*_args):
     as followers of their rig and every rig of the scene is posed, so a file edited while the extension was
     disabled (a handle moved, an object duplicated) shows what its handles say at once."""
     rig.forget()
-    bake.forget()
     rig_format.forget_bound()
     sync_scene()
 

@@ -260,3 +260,20 @@ def test_the_remove_button_removes_the_entry_of_a_handle_deleted_for_good(addon)
     assert bpy.ops.shapedeform.remove_handle(**vars(minus)) == {"FINISHED"}
     assert [item.object for item in obj.shapedeform.handles] == [kept]
     assert obj.shapedeform.active_handle == 0
+
+
+def test_the_panel_of_a_baked_rig_whose_saved_data_a_script_damaged_still_draws(addon, capfd):
+    """Asking whether the bake is out of date reads every handle's saved data: with a handle's
+    offsets deleted by a script it raised, and the panel lost Bake Again and Clear Bake."""
+    obj = grid()
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, [-1.0, 0.0, 0.0]))
+    checks.add_handle(obj, checks.world(obj, [1.0, 0.0, 0.0]))
+    assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 2) == [obj]
+    del obj.shapedeform.handles[0][addon.shapedeform_addon.rig_format.HANDLE_OFFSETS]
+    bpy.context.view_layer.update()
+    bpy.context.view_layer.objects.active = obj
+    items = drawn(bpy.context)
+    assert "shapedeform.clear_bake" in items and "shapedeform.bake" in items
+    capfd.readouterr()
