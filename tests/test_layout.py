@@ -8,6 +8,7 @@
 - Add-on code follows the extension rules: no ``bl_info``, no ``sys.path``
   edits, the extension's own packages imported relatively.
 - The manifest ships exactly the wheels pinned in ``requirements-extension.txt``.
+- The add-on's modules import one another without cycles.
 """
 
 import ast
@@ -130,3 +131,44 @@ def test_solver_keeps_no_module_level_containers():
             if (isinstance(value, containers) or is_call) and targets != ["__all__"]:
                 offenders.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     assert not offenders, f"module-level containers in solver/: {offenders}"
+
+
+def addon_module_imports():
+    """{add-on module: the add-on modules it imports at its top level}, modules named by their
+    path in ``shapedeform_addon`` ("handles", "sources.mesh"; a package by its own name)."""
+    package = ROOT / "shapedeform_addon"
+    names = {}
+    for path in python_files("shapedeform_addon"):
+        parts = path.relative_to(package).with_suffix("").parts
+        names[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    imports = {}
+    for name, path in names.items():
+        here = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+        found = set()
+        for node in ast.parse(path.read_text()).body:
+            if not isinstance(node, ast.ImportFrom) or not 0 < node.level <= len(here) + 1:
+                continue  # absolute, or above the add-on (``from .. import solver``)
+            base = ".".join(here[:len(here) - node.level + 1] + ([node.module] if node.module else []))
+            for alias in node.names:  # "from . import x" imports the module x; "from .x import y" the module x
+                submodule = f"{base}.{alias.name}".lstrip(".")
+                found.add(submodule if submodule in names else base)
+        imports[name] = {other for other in found if other in names and other != name}
+    return imports
+
+
+def test_addon_modules_import_one_another_without_cycles():
+    imports = addon_module_imports()
+    done, path = set(), []
+
+    def visit(module):
+        path.append(module)
+        for other in sorted(imports[module]):
+            assert other not in path, f"import cycle: {' -> '.join(path[path.index(other):] + [other])}"
+            if other not in done:
+                visit(other)
+        path.pop()
+        done.add(module)
+
+    for module in sorted(imports):
+        if module not in done:
+            visit(module)
