@@ -7,9 +7,9 @@ and handler lists). They are registered in the order listed here and unregistere
 The numerics live in the sibling, Blender-free package ``solver``, imported relatively.
 """
 
-from . import bake, cli, drag, handlers, keymaps, menus, operators, overlay, preferences, properties, ui
+from . import bake, bake_source, cli, drag, handlers, keymaps, menus, operators, overlay, preferences, properties, ui
 
-_modules = (preferences, properties, operators, drag, bake, ui, menus, overlay, handlers, keymaps, cli)
+_modules = (preferences, properties, operators, drag, bake, bake_source, ui, menus, overlay, handlers, keymaps, cli)
 
 classes = tuple(cls for module in _modules for cls in module.classes)
 

@@ -68,7 +68,7 @@ GRAPH_KEYS = ("plane", "graph_points", "graph_edges", "graph_loops", "graph_loop
 MODIFIER_NAME = "Shape Deform"
 BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that plays
 BAKE_MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
-BAKE_SOURCE = "shapedeform_baked_from"  # on a bake's Key: a digest of what it was made from (.bake.fingerprint)
+BAKE_SOURCE = "shapedeform_baked_from"  # on a bake's Key: a digest of what it was made from (.bake_source.fingerprint)
 BAKE_SOURCE_NUMBERS = "shapedeform_baked_from_numbers"  # ... and its numbers, compared within a tolerance
 # On the owner's settings: the name of the attribute marking the grease-pencil layers its rig
 # deforms ("" for all of them); the modifier is given the same name.
@@ -705,7 +705,7 @@ def is_baked(obj):
 
 
 def store_bake_source(cage, digest, numbers):
-    """Keep on the bake ``cage`` plays (its Key) what it was made from (:func:`.bake.fingerprint`):
+    """Keep on the bake ``cage`` plays (its Key) what it was made from (:func:`.bake_source.fingerprint`):
     its ``digest`` and ``numbers`` ((k,) float64). On the Key rather than the owner: they go
     with the bake (Clear Bake, a copy's cage), and stay in a library override's local cage mesh,
     where the owner's ID properties come back from the library on reopening."""

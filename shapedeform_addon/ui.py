@@ -3,7 +3,7 @@
 
 import bpy
 
-from . import bake, compat, handles, keymaps, nodes
+from . import bake, bake_source, compat, handles, keymaps, nodes
 from .rig_format import active_rig, is_baked, is_follower, modifiers_of, present
 from .sources import grease_pencil
 
@@ -119,7 +119,7 @@ class SHAPEDEFORM_PT_animation(_RigSubPanel, bpy.types.Panel):
             col.operator("shapedeform.bake", icon="REC")
             return
         col.label(text="Baked: the keyframes play, the rig waits", icon="KEYFRAME_HLT")
-        if bake.is_out_of_date(obj):
+        if bake_source.is_out_of_date(obj):
             col.label(text="Out of date: handles or settings changed since the bake", icon="ERROR")
         row = col.row(align=True)
         again = row.operator("shapedeform.bake", text="Bake Again", icon="REC")

@@ -810,6 +810,7 @@ def test_a_bake_says_it_is_out_of_date_once_what_it_was_made_from_changes(addon)
         assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [x, 0.0, 0.0]), kind=kind) == {"FINISHED"}
     starch, overlap = [item.object for item in obj.shapedeform.handles[2:]]
     bake = addon.shapedeform_addon.bake
+    bake_source = addon.shapedeform_addon.bake_source
 
     def key_again():
         keyed.location.y += 0.8
@@ -835,10 +836,10 @@ def test_a_bake_says_it_is_out_of_date_once_what_it_was_made_from_changes(addon)
     assert bake.bake_objects([obj], 1, 6) == [obj]
     checks.select_only(obj)
     for change in changes:
-        assert not bake.is_out_of_date(obj)
+        assert not bake_source.is_out_of_date(obj)
         change()
         bpy.context.view_layer.update()
-        assert bake.is_out_of_date(obj), change
+        assert bake_source.is_out_of_date(obj), change
         checks.select_only(obj)
         labels = drawn(bpy.context, labels=True)
         assert labels.index("Out of date: handles or settings changed since the bake") == \
@@ -847,7 +848,7 @@ def test_a_bake_says_it_is_out_of_date_once_what_it_was_made_from_changes(addon)
         assert bake.bake_objects([obj], 1, 6) == [obj]
     assert not any(label.startswith("Out of date") for label in drawn(bpy.context, labels=True))
     obj.shapedeform.iterations = 3
-    assert not bake.is_out_of_date(obj)
+    assert not bake_source.is_out_of_date(obj)
 
 
 def test_an_unchanged_bake_stays_up_to_date_over_frames_undo_saving_and_the_command_line(addon, tmp_path):
@@ -861,32 +862,32 @@ def test_an_unchanged_bake_stays_up_to_date_over_frames_undo_saving_and_the_comm
     assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
     for frame in (3, 6, 1, 9, 0):
         bpy.context.scene.frame_set(frame)
-        assert not shapedeform.bake.is_out_of_date(obj), frame
+        assert not shapedeform.bake_source.is_out_of_date(obj), frame
     bpy.ops.ed.undo_push(message="baked")
     obj.shapedeform.handles[0].object.location.x += 0.2
     bpy.ops.ed.undo_push(message="moved")
-    assert shapedeform.bake.is_out_of_date(obj)
+    assert shapedeform.bake_source.is_out_of_date(obj)
     assert bpy.ops.ed.undo() == {"FINISHED"}
-    assert not shapedeform.bake.is_out_of_date(bpy.data.objects["Grid"])
+    assert not shapedeform.bake_source.is_out_of_date(bpy.data.objects["Grid"])
 
     path = str(tmp_path / "shot.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.ops.wm.open_mainfile(filepath=path)
     obj = bpy.data.objects["Grid"]
-    assert shapedeform.rig_format.is_baked(obj) and not shapedeform.bake.is_out_of_date(obj)
+    assert shapedeform.rig_format.is_baked(obj) and not shapedeform.bake_source.is_out_of_date(obj)
     assert shapedeform.cli.main(["bake", "--frames", "2-5"]) == 0
     bpy.ops.wm.open_mainfile(filepath=path)
     obj = bpy.data.objects["Grid"]
-    assert list(obj.shapedeform["baked"]) == [2, 5, 1] and not shapedeform.bake.is_out_of_date(obj)
+    assert list(obj.shapedeform["baked"]) == [2, 5, 1] and not shapedeform.bake_source.is_out_of_date(obj)
     obj.shapedeform.handles[0].object.location.x += 0.2
     bpy.context.view_layer.update()  # a script's change counts once evaluated
-    assert shapedeform.bake.is_out_of_date(obj)
+    assert shapedeform.bake_source.is_out_of_date(obj)
 
     del obj.shapedeform.cage.data.shape_keys[shapedeform.rig_format.BAKE_SOURCE]  # as saved before
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.ops.wm.open_mainfile(filepath=path)
     obj = bpy.data.objects["Grid"]
-    assert shapedeform.rig_format.is_baked(obj) and not shapedeform.bake.is_out_of_date(obj)
+    assert shapedeform.rig_format.is_baked(obj) and not shapedeform.bake_source.is_out_of_date(obj)
 
 
 def rig_to_apply(rotation_mode=None, rotation=None, location=None, scale=(1.5, 1.5, 1.5)):
@@ -934,14 +935,15 @@ def test_apply_transform_on_the_owner_leaves_a_bake_up_to_date_however_it_writes
     for pi): the digest hashed the values, and the bake said it was out of date. A rotation no
     key sets counts by the turn it makes; an Euler rotation is written back near its angles."""
     bake = addon.shapedeform_addon.bake
+    bake_source = addon.shapedeform_addon.bake_source
     obj, still = rig_to_apply(rotation_mode, rotation)
     apply_rotation_and_scale(obj)
-    assert not bake.is_out_of_date(obj)
+    assert not bake_source.is_out_of_date(obj)
     if rotation_mode == "XYZ":
         assert still.rotation_euler.z == pytest.approx(np.pi, abs=1e-5)
     still.matrix_basis = Matrix.Rotation(0.01, 4, "Z") @ still.matrix_basis  # a turn, however small, is a change
     bpy.context.view_layer.update()
-    assert bake.is_out_of_date(obj)
+    assert bake_source.is_out_of_date(obj)
 
 
 def test_a_handle_keyed_on_one_euler_channel_keeps_its_pose_after_apply_transform_on_the_owner(addon):
@@ -967,13 +969,14 @@ def test_rounding_errors_of_apply_transform_leave_a_bake_up_to_date(addon):
     crossed a rounding step (x = -0.70000503 written back as -0.70000499) said the bake was out
     of date. Numbers no key sets are compared within a tolerance (1e-5) instead."""
     bake = addon.shapedeform_addon.bake
+    bake_source = addon.shapedeform_addon.bake_source
     obj, still = rig_to_apply(location=(-0.70000503, 0.1, 0.0), scale=(1.7, 1.3, 1.0))
     apply_rotation_and_scale(obj)
     assert round(still.location.x, 5) != round(-0.70000503, 5)  # the error crossed a step
-    assert not bake.is_out_of_date(obj)
+    assert not bake_source.is_out_of_date(obj)
     still.location.x += 1e-3
     bpy.context.view_layer.update()
-    assert bake.is_out_of_date(obj)
+    assert bake_source.is_out_of_date(obj)
 
 
 def test_renaming_what_drivers_read_leaves_a_bake_up_to_date(addon):
@@ -981,6 +984,7 @@ def test_renaming_what_drivers_read_leaves_a_bake_up_to_date(addon):
     controller, another handle) said the bake was out of date. Which objects drivers read is
     left out, as what they read is (the README says so)."""
     bake = addon.shapedeform_addon.bake
+    bake_source = addon.shapedeform_addon.bake_source
     obj = grid()
     rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
     still, keyed = [item.object for item in obj.shapedeform.handles]
@@ -995,13 +999,14 @@ def test_renaming_what_drivers_read_leaves_a_bake_up_to_date(addon):
     bpy.context.view_layer.update()
     assert bake.bake_objects([obj], 1, 6) == [obj]
     controller.name, still.name = "Controller renamed", "Left hand"
-    assert not bake.is_out_of_date(obj)
+    assert not bake_source.is_out_of_date(obj)
 
 
 def test_nla_tweak_mode_leaves_a_bake_up_to_date(addon):
     """In NLA tweak mode the action tweaked is the active action as well as its strip's: the
     digest counted its keys twice, and said the bake was out of date."""
     bake = addon.shapedeform_addon.bake
+    bake_source = addon.shapedeform_addon.bake_source
     obj = grid()
     rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
     animation = obj.shapedeform.handles[1].object.animation_data
@@ -1015,7 +1020,7 @@ def test_nla_tweak_mode_leaves_a_bake_up_to_date(addon):
     animation.nla_tracks.active = track
     animation.use_tweak_mode = True
     bpy.context.view_layer.update()
-    assert animation.action is not None and not bake.is_out_of_date(obj)
+    assert animation.action is not None and not bake_source.is_out_of_date(obj)
 
 
 def location_y_curve(handle):
@@ -1086,6 +1091,7 @@ def test_a_bake_says_it_is_out_of_date_once_how_its_keys_play_or_its_handles_han
     tracks and strips playing them, a constraint on a handle and its parent went unnoticed:
     a bake made again moved 0.28-1.02, and the sidebar said nothing."""
     bake = addon.shapedeform_addon.bake
+    bake_source = addon.shapedeform_addon.bake_source
     obj = grid()
     rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
     keyed = obj.shapedeform.handles[1].object
@@ -1095,10 +1101,10 @@ def test_a_bake_says_it_is_out_of_date_once_how_its_keys_play_or_its_handles_han
     assert bake.bake_objects([obj], 1, 6) == [obj]
     for frame in (3, 6, 1):
         bpy.context.scene.frame_set(frame)
-        assert not bake.is_out_of_date(obj), frame
+        assert not bake_source.is_out_of_date(obj), frame
     change(keyed, made)
     bpy.context.view_layer.update()
-    assert bake.is_out_of_date(obj)
+    assert bake_source.is_out_of_date(obj)
 
 
 def test_a_bake_of_handles_played_by_the_nla_constrained_and_eased_stays_up_to_date(addon, tmp_path):
@@ -1106,6 +1112,7 @@ def test_a_bake_of_handles_played_by_the_nla_constrained_and_eased_stays_up_to_d
     influence, a constraint's own inverse, modifiers, easing) leaves an unchanged bake up to
     date over frames, undo and reopening."""
     bake = addon.shapedeform_addon.bake
+    bake_source = addon.shapedeform_addon.bake_source
     obj = grid()
     rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
     still, keyed = [item.object for item in obj.shapedeform.handles]
@@ -1122,18 +1129,18 @@ def test_a_bake_of_handles_played_by_the_nla_constrained_and_eased_stays_up_to_d
     assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
     for frame in (2, 5, 1, 7, 4):
         bpy.context.scene.frame_set(frame)
-        assert not bake.is_out_of_date(obj), frame
+        assert not bake_source.is_out_of_date(obj), frame
     bpy.ops.ed.undo_push(message="baked")
     keyed.constraints[0].influence = 0.6
     bpy.ops.ed.undo_push(message="changed")
-    assert bake.is_out_of_date(obj)
+    assert bake_source.is_out_of_date(obj)
     assert bpy.ops.ed.undo() == {"FINISHED"}
-    assert not bake.is_out_of_date(bpy.data.objects["Grid"])
+    assert not bake_source.is_out_of_date(bpy.data.objects["Grid"])
     path = str(tmp_path / "shot.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.ops.wm.open_mainfile(filepath=path)
     bpy.context.scene.frame_set(3)
-    assert not bake.is_out_of_date(bpy.data.objects["Grid"])
+    assert not bake_source.is_out_of_date(bpy.data.objects["Grid"])
 
 
 def test_the_bake_operator_bakes_the_preview_range_while_it_is_on(addon, tmp_path):
@@ -1201,17 +1208,18 @@ def test_whether_a_bake_is_out_of_date_is_worked_out_once_until_what_it_depends_
     from test_ui_overlay import drawn
 
     bake = addon.shapedeform_addon.bake
+    bake_source = addon.shapedeform_addon.bake_source
     obj = grid()
     rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
     still, keyed = [item.object for item in obj.shapedeform.handles]
     assert bake.bake_objects([obj], 1, 6) == [obj]
     checks.select_only(obj)
     worked_out = []
-    fingerprint = bake.fingerprint
-    monkeypatch.setattr(bake, "fingerprint", lambda owner: worked_out.append(owner.name) or fingerprint(owner))
+    fingerprint = bake_source.fingerprint
+    monkeypatch.setattr(bake_source, "fingerprint", lambda owner: worked_out.append(owner.name) or fingerprint(owner))
     for _ in range(5):
         drawn(bpy.context, labels=True)
-        assert not bake.is_out_of_date(obj)
+        assert not bake_source.is_out_of_date(obj)
     assert worked_out == ["Grid"]
 
     def edit_a_key():
@@ -1234,7 +1242,7 @@ def test_whether_a_bake_is_out_of_date_is_worked_out_once_until_what_it_depends_
         bpy.ops.ed.undo_push(message="before")
         move()
         bpy.ops.ed.undo_push(message="moved")
-        assert bake.is_out_of_date(obj)
+        assert bake_source.is_out_of_date(obj)
         assert bpy.ops.ed.undo() == {"FINISHED"}
 
     for change, out_of_date in [(edit_a_key, True), (add_noise_and_change_frames, True), (move, True),
@@ -1242,9 +1250,9 @@ def test_whether_a_bake_is_out_of_date_is_worked_out_once_until_what_it_depends_
         obj = bpy.data.objects["Grid"]
         still, keyed = [item.object for item in obj.shapedeform.handles]
         assert bake.bake_objects([obj], 1, 6) == [obj]
-        assert not bake.is_out_of_date(obj)
+        assert not bake_source.is_out_of_date(obj)
         change()
-        assert bake.is_out_of_date(bpy.data.objects["Grid"]) == out_of_date, change
+        assert bake_source.is_out_of_date(bpy.data.objects["Grid"]) == out_of_date, change
 
 
 def test_a_duplicate_following_a_baked_rig_says_whether_the_rig_s_bake_is_out_of_date(addon):
@@ -1252,6 +1260,7 @@ def test_a_duplicate_following_a_baked_rig_says_whether_the_rig_s_bake_is_out_of
     of the rig's settings: it stayed up to date while the rig's changed. It reads the rig's
     owner, as for a handle."""
     bake = addon.shapedeform_addon.bake
+    bake_source = addon.shapedeform_addon.bake_source
     obj = grid()
     rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
     assert bake.bake_objects([obj], 1, 6) == [obj]
@@ -1260,10 +1269,10 @@ def test_a_duplicate_following_a_baked_rig_says_whether_the_rig_s_bake_is_out_of
     bpy.context.view_layer.update()
     follower = bpy.context.active_object
     assert addon.shapedeform_addon.rig_format.is_follower(follower)
-    assert not bake.is_out_of_date(follower)
+    assert not bake_source.is_out_of_date(follower)
     obj.shapedeform.weight_edge = 3.0
     bpy.context.view_layer.update()
-    assert bake.is_out_of_date(follower) and bake.is_out_of_date(obj.shapedeform.handles[0].object)
+    assert bake_source.is_out_of_date(follower) and bake_source.is_out_of_date(obj.shapedeform.handles[0].object)
 
 
 def test_a_copy_of_a_baked_rig_names_its_bake_action_after_its_own_cage(addon):
