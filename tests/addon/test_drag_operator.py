@@ -404,15 +404,14 @@ def test_ctrl_click_where_the_pose_overlaps_itself_pins_the_part_in_front(addon)
     """An arm swung across the torso is drawn in front of it: Ctrl+click on it pins the arm.
     The point nearest the click on the plane was often the torso's, left on the plane under
     the arm (8 of 13 clicks on a grease-pencil arm), so the drag pulled the hidden torso."""
-    from test_overlap_depth import figure, swing_arm_across
+    from test_overlap_depth import figure, forearm_over_torso, swing_arm_across
 
     rig_format = addon.shapedeform_addon.rig_format
     obj, _ = figure()
     swing_arm_across(obj)
     bpy.context.scene.frame_set(10)
     rest, posed = checks.mesh_points(obj), checks.evaluated_mesh_points(obj)
-    # The forearm, whose handle regions do not reach the shoulder.
-    over_torso = np.flatnonzero((rest[:, 0] > 0.8) & (np.abs(posed[:, 0]) < 0.2) & (np.abs(posed[:, 1]) < 0.9))
+    over_torso = forearm_over_torso(rest, posed)
     assert len(over_torso) >= 4
     for k in over_torso:
         modal, op, _ = operator_stand_in(addon, obj)

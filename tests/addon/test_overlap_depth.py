@@ -71,6 +71,12 @@ def swing_arm_across(obj):
     return tip
 
 
+def forearm_over_torso(rest, posed):
+    """Indices of the forearm's points (whose handle regions do not reach the shoulder) that
+    the pose lays over the torso."""
+    return np.flatnonzero((rest[:, 0] > 0.8) & (np.abs(posed[:, 0]) < 0.2) & (np.abs(posed[:, 1]) < 0.9))
+
+
 def part_shares(obj, arm, camera, pixels, torso=None, margin=None):
     """(arm share, torso share) of the pixels where the evaluated arm and torso overlap, at least
     ``margin`` inside (1.5 pixels by default)."""
@@ -703,7 +709,7 @@ def test_a_pin_moved_by_hand_binds_to_the_point_it_is_left_on(addon):
     swing_arm_across(obj)
     bpy.context.scene.frame_set(10)
     rest, posed = checks.mesh_points(obj), checks.evaluated_mesh_points(obj)
-    hand = np.flatnonzero((rest[:, 0] > 0.8) & (np.abs(posed[:, 0]) < 0.2) & (np.abs(posed[:, 1]) < 0.9))
+    hand = forearm_over_torso(rest, posed)
     assert len(hand) >= 2, "the hand does not lie over the torso"
     torso = np.flatnonzero(rest[:, 0] < 0.25)
     checks.select_only(obj)
