@@ -404,13 +404,10 @@ def test_ctrl_click_where_the_pose_overlaps_itself_pins_the_part_in_front(addon)
     """An arm swung across the torso is drawn in front of it: Ctrl+click on it pins the arm.
     The point nearest the click on the plane was often the torso's, left on the plane under
     the arm (8 of 13 clicks on a grease-pencil arm), so the drag pulled the hidden torso."""
-    from test_overlap_depth import figure, forearm_over_torso, swing_arm_across
+    from test_overlap_depth import forearm_over_torso, swung_figure
 
     rig_format = addon.shapedeform_addon.rig_format
-    obj, _ = figure()
-    swing_arm_across(obj)
-    bpy.context.scene.frame_set(10)
-    rest, posed = checks.mesh_points(obj), checks.evaluated_mesh_points(obj)
+    obj, _, rest, posed = swung_figure()
     over_torso = forearm_over_torso(rest, posed)
     assert len(over_torso) >= 4
     for k in over_torso:

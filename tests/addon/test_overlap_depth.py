@@ -71,6 +71,15 @@ def swing_arm_across(obj):
     return tip
 
 
+def swung_figure():
+    """The figure with its arm swung across the torso, at frame 10: (object, per face whether
+    it is the arm's, rest points (n, 3), points as posed (n, 3))."""
+    obj, arm = figure()
+    swing_arm_across(obj)
+    bpy.context.scene.frame_set(10)
+    return obj, arm, checks.mesh_points(obj), checks.evaluated_mesh_points(obj)
+
+
 def forearm_over_torso(rest, posed):
     """Indices of the forearm's points (whose handle regions do not reach the shoulder) that
     the pose lays over the torso."""
@@ -178,10 +187,7 @@ def test_a_pin_added_where_the_pose_overlaps_itself_goes_on_the_layer_clicked(ad
     pin binds to the arm: it was bound to whichever layer's triangle the triangulation gave
     first, the torso's at all 11 such places tried, so -1 sank the torso and +1 lifted it over
     the arm. Clicked on the torso beside it, under the arm, it binds to the torso."""
-    obj, arm = figure()
-    swing_arm_across(obj)
-    bpy.context.scene.frame_set(10)
-    rest, posed = checks.mesh_points(obj), checks.evaluated_mesh_points(obj)
+    obj, arm, rest, posed = swung_figure()
     on_arm = (rest[:, 0] > 0.45) & (rest[:, 1] > 0.55) & (rest[:, 1] < 0.75)
     over_torso = on_arm & (np.abs(posed[:, 0]) < 0.2) & (np.abs(posed[:, 1]) < 0.9)
     assert over_torso.sum() >= 4
@@ -705,10 +711,7 @@ def test_a_pin_moved_by_hand_binds_to_the_point_it_is_left_on(addon):
     behind; the pose does not move. It used to stay bound to the torso's point, its Empty
     floating off the shape by what it was moved."""
     rig_format = addon.shapedeform_addon.rig_format
-    obj, arm = figure()
-    swing_arm_across(obj)
-    bpy.context.scene.frame_set(10)
-    rest, posed = checks.mesh_points(obj), checks.evaluated_mesh_points(obj)
+    obj, arm, rest, posed = swung_figure()
     hand = forearm_over_torso(rest, posed)
     assert len(hand) >= 2, "the hand does not lie over the torso"
     torso = np.flatnonzero(rest[:, 0] < 0.25)
@@ -746,9 +749,7 @@ def test_a_pin_moved_by_hand_binds_to_the_point_it_is_left_on(addon):
 def pinned_figure(location=(0.0, -0.5, 0.0)):
     """The figure posed with its arm across the torso (frame 10) and an overlap pin added at
     ``location``: (object, the pin's handle item, its Empty)."""
-    obj, _ = figure()
-    swing_arm_across(obj)
-    bpy.context.scene.frame_set(10)
+    obj = swung_figure()[0]
     checks.select_only(obj)
     assert bpy.ops.shapedeform.add_handle(location=location, kind="OVERLAP") == {"FINISHED"}
     item = obj.shapedeform.handles[-1]

@@ -314,6 +314,16 @@ def pose_puppet(obj):
     assert obj.shapedeform.status == ""
 
 
+def join_into(active, *others):
+    """Ctrl+J of ``others`` into ``active``, as the viewport does it (``active`` active, all
+    selected), evaluated."""
+    checks.select_only(active)
+    for other in others:
+        other.select_set(True)
+    assert bpy.ops.object.join() == {"FINISHED"}
+    bpy.context.view_layer.update()
+
+
 def assert_arm_up_body_still(shown, rest, is_arm):
     """The arm's points moved up 1.0 with the hand, the body's stayed (in the plane: the arm
     also lifts in front)."""
@@ -559,11 +569,7 @@ def test_a_puppets_islands_last_through_reload_duplicates_join_and_undo_and_go_o
     plain = bpy.data.objects.new("Plain", bpy.data.meshes.new("Plain"))
     plain.data.from_pydata(square, [], square_faces)
     bpy.context.scene.collection.objects.link(plain)
-    checks.select_only(plain)
-    obj.select_set(True)
-    bpy.context.view_layer.objects.active = obj
-    assert bpy.ops.object.join() == {"FINISHED"}
-    bpy.context.view_layer.update()
+    join_into(obj, plain)
     joined = (np.concatenate([edited[1], np.array(square)]), np.concatenate([edited[2], np.ones(4, bool)]))
     for part, (part_rest, is_arm) in ((obj, joined), (shared_copy, joined),
                                       (own_copy, (rest, np.arange(len(rest)) >= body))):
@@ -624,13 +630,7 @@ def test_a_puppet_joined_into_a_plain_mesh_leaves_it_no_islands(addon):
     obj, _ = puppet()
     pose_puppet(obj)
     plain = grid("Plain")
-    for other in bpy.context.selected_objects:
-        other.select_set(False)
-    obj.select_set(True)
-    plain.select_set(True)
-    bpy.context.view_layer.objects.active = plain
-    assert bpy.ops.object.join() == {"FINISHED"}
-    bpy.context.view_layer.update()
+    join_into(plain, obj)
     assert not plain.shapedeform.is_bound
     assert addon.shapedeform_addon.nodes.ISLAND not in plain.data.attributes
 
@@ -823,11 +823,7 @@ def test_a_rigged_puppet_joined_into_another_follows_the_parts_it_lies_on(addon)
     joined_rest = checks.mesh_points(second) + [-1.2, 0.0, 0.0]
     arm = numbers[1] == numbers[1].max()
     count = len(first.data.vertices)
-    checks.select_only(second)
-    first.select_set(True)
-    bpy.context.view_layer.objects.active = first
-    assert bpy.ops.object.join() == {"FINISHED"}
-    bpy.context.view_layer.update()
+    join_into(first, second)
     moved = checks.evaluated_mesh_points(first)[count:, :2] - joined_rest[:, :2]
     on_body_only = arm & (joined_rest[:, 0] < 1.15)  # left of the first puppet's arm
     assert on_body_only.sum() >= 4
@@ -877,13 +873,7 @@ def test_a_copy_with_a_rig_of_its_own_numbers_its_islands_apart(addon):
     joined_rest = checks.mesh_points(second) + [-1.2, 0.0, 0.0]
     arm = island_numbers_of(addon, second.data) == numbers[1].max()
     count = len(first.data.vertices)
-    for other in bpy.context.selected_objects:
-        other.select_set(False)
-    first.select_set(True)
-    second.select_set(True)
-    bpy.context.view_layer.objects.active = first
-    assert bpy.ops.object.join() == {"FINISHED"}
-    bpy.context.view_layer.update()
+    join_into(first, second)
     moved = checks.evaluated_mesh_points(first)[count:, :2] - joined_rest[:, :2]
     on_body_only = arm & (joined_rest[:, 0] < 1.15)
     assert on_body_only.sum() >= 4
