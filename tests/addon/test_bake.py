@@ -20,6 +20,7 @@ import rig_checks as checks
 from extension_under_test import ADDON_MODULE
 from test_rig_curve import curve_points, text_curve
 from test_rig_grease_pencil import drawing_points
+from test_handles_driver import duplicate
 from test_rig_mesh import grid
 
 FRAMES = range(1, 7)
@@ -755,14 +756,7 @@ def test_a_copy_of_a_baked_rig_bakes_into_an_action_of_its_own(addon):
     shapedeform = addon.shapedeform_addon
     shapedeform.bake.bake_objects([obj], 1, 6)
     expected = live(lambda: checks.evaluated_mesh_points(obj))
-    for o in bpy.context.selected_objects:
-        o.select_set(False)
-    for o in [obj] + [item.object for item in obj.shapedeform.handles]:
-        o.select_set(True)
-    bpy.context.view_layer.objects.active = obj
-    assert bpy.ops.object.duplicate() == {"FINISHED"}
-    bpy.context.view_layer.update()
-    copy = next(o for o in bpy.context.selected_objects if o.type == "MESH")
+    copy = duplicate([obj] + [item.object for item in obj.shapedeform.handles], obj)
     assert shapedeform.rig_format.is_owner(copy)
 
     def bake_of(o):

@@ -1112,16 +1112,23 @@ def test_a_character_bound_again_in_its_file_poses_again_in_the_shot(addon, tmp_
     assert np.abs(evaluated(obj) - rest).max() > 0.2
 
 
-def test_make_handles_editable_frees_an_overrides_handles_for_the_interface(addon, tmp_path, quiet):
-    """Blender overrides a linked character's objects as system overrides, which its interface
-    will not move or key: the rig's panel offers Make Handles Editable, which makes its handles
-    and pins user overrides (and then has nothing left to do)."""
+def pinned_character_library(tmp_path):
+    """A character file: a grid rigged with a handle at each end and an overlap pin in the
+    middle, in the collection "Character". Returns its path."""
     _, obj = character_collection(tmp_path)
     Rigged(obj)
     bpy.context.view_layer.objects.active = obj
     assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.0, 0.0, 0.0]), kind="OVERLAP") == {"FINISHED"}
     library = str(tmp_path / "character.blend")
     bpy.ops.wm.save_as_mainfile(filepath=library)
+    return library
+
+
+def test_make_handles_editable_frees_an_overrides_handles_for_the_interface(addon, tmp_path, quiet):
+    """Blender overrides a linked character's objects as system overrides, which its interface
+    will not move or key: the rig's panel offers Make Handles Editable, which makes its handles
+    and pins user overrides (and then has nothing left to do)."""
+    library = pinned_character_library(tmp_path)
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     assert not bpy.ops.shapedeform.make_handles_editable.poll()  # nothing to do without a rig
 
@@ -1139,12 +1146,7 @@ def test_a_pin_of_a_library_override_moved_by_hand_goes_back_on_its_point(addon,
     """The library keeps which points an override's pins ride on: moved by hand, its Empty
     floated 0.54 off the shape while its depth still came from its point. It goes back."""
     point_key = addon.shapedeform_addon.rig_format.PIN_POINT
-    _, obj = character_collection(tmp_path)
-    Rigged(obj)
-    bpy.context.view_layer.objects.active = obj
-    assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, [0.0, 0.0, 0.0]), kind="OVERLAP") == {"FINISHED"}
-    library = str(tmp_path / "character.blend")
-    bpy.ops.wm.save_as_mainfile(filepath=library)
+    library = pinned_character_library(tmp_path)
     obj = override_in_a_new_shot(library)
     item = next(i for i in obj.shapedeform.handles if i.object.shapedeform.pin_kind == "OVERLAP")
     pin, point = item.object, item[point_key]
