@@ -44,6 +44,17 @@ def operator_stand_in(addon, obj):
     return drag.SHAPEDEFORM_OT_drag.modal, op, reports
 
 
+def dragged_by_script(addon, obj, handle, offset):
+    """Grab ``handle`` of ``obj``'s rig with a ray from above, as a script drives the drag, and
+    move it by ``offset`` (3,); returns the drag's state, to confirm or cancel."""
+    drag = addon.shapedeform_addon.drag
+    start = np.array(handle.matrix_world.translation)
+    ray = lambda point: (np.array([point[0], point[1], 5.0]), np.array([0.0, 0.0, -1.0]))  # noqa: E731
+    state = drag.begin(bpy.context, obj, ray(start))
+    drag.move(bpy.context, state, ray(start + np.asarray(offset)))
+    return state
+
+
 def test_modal_drag_follows_the_mouse_and_confirms(addon):
     obj, left, right = rig_with_two_handles()
     modal, op, reports = operator_stand_in(addon, obj)
@@ -202,10 +213,7 @@ def test_auto_keying_keys_the_moved_handle(addon, keying_preferences):
     keying_preferences.use_keyframe_insert_available = False  # on by default in Blender 5.2
     scene.frame_set(7)
     drag = addon.shapedeform_addon.drag
-    ray = lambda p: (np.array([p[0], p[1], 5.0]), np.array([0.0, 0.0, -1.0]))  # noqa: E731
-    start = np.array(right.matrix_world.translation)
-    state = drag.begin(bpy.context, obj, ray(start))
-    drag.move(bpy.context, state, ray(start + [0.0, 0.3, 0.0]))
+    state = dragged_by_script(addon, obj, right, (0.0, 0.3, 0.0))
     assert drag.confirm(bpy.context, state) == [right]
     animation = right.animation_data
     bag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
@@ -215,9 +223,7 @@ def test_auto_keying_keys_the_moved_handle(addon, keying_preferences):
     # As Blender's auto-keying: the timeline's key type.
     scene.tool_settings.keyframe_type = "BREAKDOWN"
     scene.frame_set(9)
-    start = np.array(right.matrix_world.translation)
-    state = drag.begin(bpy.context, obj, ray(start))
-    drag.move(bpy.context, state, ray(start + [0.0, 0.2, 0.0]))
+    state = dragged_by_script(addon, obj, right, (0.0, 0.2, 0.0))
     assert drag.confirm(bpy.context, state) == [right]
     curve = next(c for c in bag.fcurves if (c.data_path, c.array_index) == ("location", 1))
     assert [k.type for k in curve.keyframe_points] == ["KEYFRAME", "BREAKDOWN"]
@@ -280,10 +286,7 @@ def test_auto_keying_keys_a_drag_as_blender_keys_a_move(addon, setting, keying_p
     scene.frame_set(frame, subframe=subframe)
     moved_with_g(left, (0.0, 0.2, 0.0))
     drag = addon.shapedeform_addon.drag
-    ray = lambda p: (np.array([p[0], p[1], 5.0]), np.array([0.0, 0.0, -1.0]))  # noqa: E731
-    start = np.array(right.matrix_world.translation)
-    state = drag.begin(bpy.context, obj, ray(start))
-    drag.move(bpy.context, state, ray(start + [0.0, 0.2, 0.0]))
+    state = dragged_by_script(addon, obj, right, (0.0, 0.2, 0.0))
     before = keyed(left)
     with in_viewport():  # where the drag runs (keying sets key through an operator)
         drag.confirm(bpy.context, state)
@@ -340,10 +343,7 @@ def test_auto_keying_through_the_active_keying_set_outside_a_viewport(addon, key
     if where == "no 3D viewport anywhere":
         no_viewport_anywhere()
     drag = addon.shapedeform_addon.drag
-    ray = lambda p: (np.array([p[0], p[1], 5.0]), np.array([0.0, 0.0, -1.0]))  # noqa: E731
-    start = np.array(right.matrix_world.translation)
-    state = drag.begin(bpy.context, obj, ray(start))
-    drag.move(bpy.context, state, ray(start + [0.0, 0.2, 0.0]))
+    state = dragged_by_script(addon, obj, right, (0.0, 0.2, 0.0))
     assert drag.confirm(bpy.context, state) == [right]
     assert keyed_in_groups(right) == expected
     assert other.animation_data is None
@@ -356,10 +356,8 @@ def test_undo_after_a_drag_gives_back_the_pose_and_the_rig_keeps_working(addon):
     before = checks.evaluated_mesh_points(obj).copy()
     bpy.ops.ed.undo_push(message="before drag")
     drag = addon.shapedeform_addon.drag
-    ray = lambda p: (np.array([p[0], p[1], 5.0]), np.array([0.0, 0.0, -1.0]))  # noqa: E731
     start = np.array(right.matrix_world.translation)
-    state = drag.begin(bpy.context, obj, ray(start))
-    drag.move(bpy.context, state, ray(start + [0.0, 0.4, 0.0]))
+    state = dragged_by_script(addon, obj, right, (0.0, 0.4, 0.0))
     drag.confirm(bpy.context, state)
     bpy.ops.ed.undo_push(message="Drag Handle")
     dragged = checks.evaluated_mesh_points(obj).copy()
