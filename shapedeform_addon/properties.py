@@ -152,7 +152,9 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
         default="AUTO", options=NOT_KEYABLE)
     density: IntProperty(name="Graph Density", description="About how many interior points the built graph has",
                          default=300, min=20, max=5000, soft_max=2000, options=NOT_KEYABLE)
-    region_size: FloatProperty(name="Handle Region", description="Radius of a handle's region, as a fraction of the shape's size",
+    region_size: FloatProperty(name="Handle Region",
+                               description="Radius of the region a new handle holds, as a fraction of the shape's "
+                                           "size (handles already added keep theirs)",
                                default=0.04, min=0.001, max=0.5, subtype='FACTOR', options=NOT_KEYABLE)
     layers: StringProperty(name="Layers", description="Grease pencil layers to rig, comma separated (empty: all)",
                             options=NOT_KEYABLE)
