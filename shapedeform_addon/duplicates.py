@@ -41,7 +41,6 @@ def adopt_duplicated(obj):
     cage = _cage_for(obj, shared, shared.data)
     cage.data = rig_format.copy_cage_mesh(shared.data, cage)
     cage.shapedeform.rig = obj
-    _number_islands_apart(obj, cage.data)
     settings.handle_collection = None  # the original's: this rig gets its own
     home = handles.collection(obj)
     home.objects.link(cage)
@@ -57,6 +56,7 @@ def adopt_duplicated(obj):
     settings.cage = cage
     handles.set_active(settings, min(settings.active_handle, len(settings.handles) - 1))
     rig_format.point_inputs(obj, {nodes.CAGE_INPUT: cage})
+    number_islands_apart(obj)
     return True
 
 
@@ -173,16 +173,56 @@ def own_cage_mesh(obj):
     for own in [cage, *followers]:
         own.data = mesh
     mesh[rig_format.CAGE_STAMP] = cage
-    _number_islands_apart(obj, mesh)
+    number_islands_apart(obj)
     return True
 
 
-def _number_islands_apart(obj, cage_mesh):
-    """Number the islands of ``obj``'s rig, just given ``cage_mesh`` (a copy of another rig's
-    cage mesh), apart from that rig's, where ``obj``'s mesh is its own: a mesh shared with the
-    other rig keeps the numbers both read (``rig_format.renumber_islands``)."""
-    if obj.type == "MESH" and obj.data.library is None and not rig_format.other_rigged_users(obj):
-        rig_format.renumber_islands(cage_mesh, obj.data)
+def number_islands_apart(obj):
+    """Number the islands of owner ``obj``'s rig from a first number no other rig has: on its
+    cage, on its mesh and on its followers' meshes (``rig_format.renumber_islands``), where no
+    other rig reads those meshes (a mesh two rigs deform keeps the numbers both read); True
+    when it did."""
+    if obj.type != "MESH" or obj.library is not None:
+        return False
+    mine = [obj, *followers(obj)]
+    meshes = {o.data for o in mine if o.type == "MESH"}
+    if any(mesh.library is not None for mesh in meshes):
+        return False
+    if any(o.data in meshes and o not in mine for o in rig_format.bound_objects()):
+        return False
+    rig_format.renumber_islands(obj.shapedeform.cage.data, meshes)
+    return True
+
+
+# The list of bound objects that keep_islands_apart last checked: ``rig_format.bound_objects``
+# makes a new one when objects come or go, and only then can two rigs number alike.
+_checked = {"bound": None}
+
+
+def keep_islands_apart():
+    """Where two rigs of different meshes number their islands from the same first number,
+    number the later one's apart (:func:`number_islands_apart`; a library's rig is left as it
+    is, and the other one is numbered apart then).
+
+    A character appended twice, or pasted (Ctrl+V appends from a file), comes with copies of
+    its meshes whose numbers are those of the original: joining one copy into the other made
+    the joined part's vertices move with the other rig's islands."""
+    bound = rig_format.bound_objects()
+    if bound is _checked["bound"]:
+        return
+    _checked["bound"] = bound
+    numbered = {}
+    for obj in bound:
+        if not rig_format.is_owner(obj) or obj.type != "MESH":
+            continue
+        first = rig_format.first_island(obj.shapedeform.cage.data)
+        if not first:  # numbered from 1 by an older version
+            continue
+        other = numbered.setdefault(first, obj)
+        if other is obj or other.data == obj.data or number_islands_apart(obj):
+            continue
+        if number_islands_apart(other):
+            numbered[first] = obj
 
 
 def followers(obj):

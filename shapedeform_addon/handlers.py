@@ -125,6 +125,7 @@ def on_depsgraph_update(scene, depsgraph):
         for obj in rig_format.bound_objects():  # an object moved between collections, perhaps a handle
             if rig_format.is_owner(obj):
                 handles.keep_in_collection(obj)
+    duplicates.keep_islands_apart()  # a character appended twice
     for update in depsgraph.updates:
         if not isinstance(update.id, bpy.types.Object):
             continue
@@ -287,6 +288,7 @@ def sync_scene():
             handles.put_pins_back(obj)
         if obj.shapedeform.is_bound or rig_format.watches_handles(obj):
             rig_format.keep_handles_evaluated(obj)  # a file from before the driver, the extension enabled again
+    duplicates.keep_islands_apart()
     scene = bpy.context.scene
     if scene is not None:
         depsgraph = bpy.context.evaluated_depsgraph_get()

@@ -432,18 +432,26 @@ def follow_library_cage(cage):
     library's rig was bound again (its cage's rest differs from the copy's), point the cage back
     at the library's mesh, so the next pose copies it afresh. The owner's graph comes back from
     the library on reopening; the stale copy no longer fitted it, and nothing in the shot could
-    replace it (unbind is the library's)."""
+    replace it (unbind is the library's). Bound again on the same graph, the rig may number its
+    islands anew (:func:`island_numbers`), as the library's meshes then do: the copy takes the
+    new numbers and keeps its pose and bake."""
     reference = cage.override_library.reference if cage.override_library is not None else None
     if reference is None or reference.data is None or cage.data.library is not None:
         return
     library_mesh, copy = reference.data, cage.data
     if library_mesh == copy or nodes.REST not in library_mesh.attributes:
         return
-    if (nodes.REST in copy.attributes and len(library_mesh.vertices) == len(copy.vertices)
+    if not (nodes.REST in copy.attributes and len(library_mesh.vertices) == len(copy.vertices)
             and np.array_equal(_points(library_mesh, library_mesh.attributes[nodes.REST].data),
                                _points(copy, copy.attributes[nodes.REST].data))):
+        cage.data = library_mesh
         return
-    cage.data = library_mesh
+    islands = islands_of(library_mesh)
+    if islands is not None and not np.array_equal(islands, islands_of(copy)):
+        if nodes.ISLAND not in copy.attributes:
+            copy.attributes.new(nodes.ISLAND, "INT", "POINT")
+        copy.attributes[nodes.ISLAND].data.foreach_set("value", islands)
+        copy.update()
 
 
 def _points(mesh, data, name="vector"):
@@ -483,7 +491,7 @@ def island_numbers(pieces, data=None):
     pieces = np.asarray(pieces, dtype=np.int32)
     if pieces.max(initial=0) + 1 >= ISLANDS_PER_RIG:
         return pieces + 1
-    numbered = [(obj.data, _first_island(obj.shapedeform.cage.data)) for obj in bound_objects() if is_owner(obj)]
+    numbered = [(obj.data, first_island(obj.shapedeform.cage.data)) for obj in bound_objects() if is_owner(obj)]
     numbered = [(owned, first) for owned, first in numbered if first is not None]  # a rig of one island has none
     same_data = [first for owned, first in numbered if data is not None and owned == data]
     if same_data:
@@ -491,7 +499,7 @@ def island_numbers(pieces, data=None):
     return pieces + _free_first_island(first for _, first in numbered) + 1
 
 
-def _first_island(mesh):
+def first_island(mesh):
     """The first number (a multiple of :data:`ISLANDS_PER_RIG`) a rig numbers its islands from,
     from its cage's mesh; None where it keeps none."""
     islands = islands_of(mesh)
@@ -505,19 +513,20 @@ def _free_first_island(taken):
     return random.choice(free) if free else 0
 
 
-def renumber_islands(cage_mesh, mesh=None):
-    """Number anew the islands of a copied rig: its cage's mesh ``cage_mesh`` and, where the
-    copy's mesh ``mesh`` is its own, its vertices, from a first number no other rig has. A rig
-    given a copy of another's cage (Shift+D with its handles, a character appended twice)
-    otherwise kept its original's numbers, which the original read as its own islands in a mesh
-    the copy was joined into. A rig numbered from 1 (by an older version) is left as it is."""
-    first = _first_island(cage_mesh)
+def renumber_islands(cage_mesh, meshes=()):
+    """Number anew the islands of a copied rig: its cage's mesh ``cage_mesh`` and ``meshes``,
+    the meshes whose vertices read only this rig (its owner's, its followers'), from a first
+    number no other rig has. A rig given a copy of another's cage (Shift+D with its handles, a
+    character appended twice) otherwise kept its original's numbers, which the original read as
+    its own islands in a mesh the copy was joined into. A rig numbered from 1 (by an older
+    version) is left as it is."""
+    first = first_island(cage_mesh)
     if not first:
         return
-    taken = [_first_island(obj.shapedeform.cage.data) for obj in bound_objects() if is_owner(obj)]
+    taken = [first_island(obj.shapedeform.cage.data) for obj in bound_objects() if is_owner(obj)]
     shift = _free_first_island(taken) - first
-    for data in (cage_mesh, mesh):
-        islands = islands_of(data) if data is not None else None
+    for data in (cage_mesh, *meshes):
+        islands = islands_of(data)
         if islands is None:
             continue
         mine = (islands >= first) & (islands < first + ISLANDS_PER_RIG)

@@ -820,18 +820,27 @@ def test_a_rigged_puppet_joined_into_another_follows_the_parts_it_lies_on(addon)
     for obj, values in zip((first, second), numbers):
         obj.data.attributes[island].data.foreach_get("value", values)
     assert not set(numbers[0]) & set(numbers[1])  # each rig numbers its islands apart
+    assert_joined_arm_stays(addon, first, second)
+
+
+def island_numbers_of(addon, mesh):
+    return addon.shapedeform_addon.rig_format.islands_of(mesh)
+
+
+def assert_joined_arm_stays(addon, first, second):
+    """Ctrl+J of posed puppet ``second``, placed 1.2 left of ``first`` (at the origin), into
+    ``first``: the vertices of ``second``'s arm lying on ``first``'s body stay where they are.
+    Where its islands are numbered as ``first``'s, ``first``'s rig reads them as its own arm's
+    and moves them up 1.0."""
+    numbers = island_numbers_of(addon, second.data)
     joined_rest = checks.mesh_points(second) + [-1.2, 0.0, 0.0]
-    arm = numbers[1] == numbers[1].max()
+    arm = numbers == numbers.max()
     count = len(first.data.vertices)
     join_into(first, second)
     moved = checks.evaluated_mesh_points(first)[count:, :2] - joined_rest[:, :2]
     on_body_only = arm & (joined_rest[:, 0] < 1.15)  # left of the first puppet's arm
     assert on_body_only.sum() >= 4
     np.testing.assert_allclose(moved[on_body_only], 0.0, atol=1e-3)
-
-
-def island_numbers_of(addon, mesh):
-    return addon.shapedeform_addon.rig_format.islands_of(mesh)
 
 
 def test_two_rigs_of_one_puppet_mesh_number_its_islands_alike(addon):
@@ -870,11 +879,81 @@ def test_a_copy_with_a_rig_of_its_own_numbers_its_islands_apart(addon):
     np.testing.assert_array_equal(np.unique(island_numbers_of(addon, second.data)), np.unique(numbers[1]))
     second.location.x -= 1.2
     bpy.context.view_layer.update()
-    joined_rest = checks.mesh_points(second) + [-1.2, 0.0, 0.0]
-    arm = island_numbers_of(addon, second.data) == numbers[1].max()
-    count = len(first.data.vertices)
-    join_into(first, second)
-    moved = checks.evaluated_mesh_points(first)[count:, :2] - joined_rest[:, :2]
-    on_body_only = arm & (joined_rest[:, 0] < 1.15)
-    assert on_body_only.sum() >= 4
-    np.testing.assert_allclose(moved[on_body_only], 0.0, atol=1e-3)
+    assert_joined_arm_stays(addon, first, second)
+
+
+def posed_puppet_library(addon, tmp_path, refine=None, follower=False):
+    """A posed puppet (:func:`pose_puppet`) in a collection "Character", its modifier's Refine
+    set to ``refine`` if given, with a Shift+D copy ("Puppet Copy", a follower) if
+    ``follower``, saved in a library file; then a new empty file. Returns the library's path."""
+    from test_handles_driver import duplicate
+
+    obj, _ = puppet()
+    character = bpy.data.collections.new("Character")
+    bpy.context.scene.collection.children.link(character)
+    bpy.context.scene.collection.objects.unlink(obj)
+    character.objects.link(obj)
+    pose_puppet(obj)
+    if refine is not None:
+        checks.refine(addon.shapedeform_addon, obj, refine)
+    if follower:
+        duplicate([obj], obj).name = "Puppet Copy"
+    library = str(tmp_path / "puppet.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    return library
+
+
+def test_a_puppet_appended_twice_numbers_its_copies_islands_apart(addon, tmp_path, quiet):
+    """A posed puppet appended twice (no Reuse Data): both copies came with the library's island
+    numbers, so joining one into the other moved 12 of the joined arm's vertices up 1.0 with the
+    other copy's arm. The copy appended second is numbered apart, its follower's mesh too."""
+    library = posed_puppet_library(addon, tmp_path, follower=True)
+    for _ in range(2):
+        assert bpy.ops.wm.append(directory=library + "/Collection/", filename="Character") == {"FINISHED"}
+        bpy.context.view_layer.update()
+    first, second = bpy.data.objects["Puppet"], bpy.data.objects["Puppet.001"]
+    numbers = [island_numbers_of(addon, o.shapedeform.cage.data) for o in (first, second)]
+    assert not set(numbers[0]) & set(numbers[1])
+    for obj in (second, bpy.data.objects["Puppet Copy.001"]):
+        np.testing.assert_array_equal(np.unique(island_numbers_of(addon, obj.data)), np.unique(numbers[1]))
+    second.location.x -= 1.2
+    bpy.context.view_layer.update()
+    assert_joined_arm_stays(addon, first, second)
+
+
+def test_an_overridden_puppet_keeps_its_pose_when_the_library_binds_it_again(addon, tmp_path, quiet):
+    """The library binds its puppet again on the same graph, which numbers its islands anew,
+    after a shot posed an override of it (Refine on): the shot's copy of the cage kept the old
+    numbers, none of which the mesh's vertices had any more, and 14 of 218 points moved up to
+    1.0 from the pose the same handles gave before."""
+    library = posed_puppet_library(addon, tmp_path, refine=1)
+    with bpy.data.libraries.load(library, link=True) as (_, linked):
+        linked.collections = ["Character"]
+    linked.collections[0].override_hierarchy_create(bpy.context.scene, bpy.context.view_layer)
+    bpy.context.view_layer.update()
+    obj = bpy.context.scene.objects["Puppet"]
+    posed = checks.evaluated_mesh_points(obj).copy()  # the hand up 1.0, as the library has it
+    obj.shapedeform.handles[1].object.location.y -= 0.5  # the shot's own copy of the cage
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.cage.data.library is None
+    shot = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+
+    bpy.ops.wm.open_mainfile(filepath=library)
+    rigged = bpy.data.objects["Puppet"]
+    numbers = island_numbers_of(addon, rigged.data)
+    checks.select_only(rigged)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    for place in ((0.0, 0.5, 0.0), (3.0, 0.5, 0.0)):  # the same handles, not moved
+        checks.add_handle(rigged, place)
+    checks.refine(addon.shapedeform_addon, rigged, 1)
+    assert not set(island_numbers_of(addon, rigged.data)) & set(numbers)
+    bpy.ops.wm.save_mainfile()
+
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    obj = bpy.context.scene.objects["Puppet"]
+    obj.shapedeform.handles[1].object.location.y += 0.5
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(checks.evaluated_mesh_points(obj), posed, atol=1e-4)
