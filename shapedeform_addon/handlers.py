@@ -17,7 +17,7 @@ from bpy.app.handlers import persistent
 
 from . import duplicates, handles, nodes, rig, rig_format
 from .errors import RigError
-from .sources import mesh
+from .sources import grease_pencil, mesh
 
 # Writing geometry makes Blender evaluate again and call us back: ignore those calls.
 _busy = False
@@ -136,6 +136,8 @@ def on_depsgraph_update(scene, depsgraph):
         if (obj.type == "MESH" and obj.data.library is None and nodes.ISLAND in obj.data.attributes
                 and rig_format.owner_of(obj) is None):
             mesh.forget_islands(obj)  # a rigged puppet joined into a mesh no rig deforms
+        if obj.type == "GREASEPENCIL":
+            grease_pencil.keep_marks(obj)  # layers added, deleted or joined in
         if rig_format.is_owner(obj) and update.is_updated_transform and obj.library is None:
             handles.keep_in_rig_space(obj)  # after Apply Transform or Set Origin
             handles.fit_pin_shapes(obj)  # its scale is its pins' too

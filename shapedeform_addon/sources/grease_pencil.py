@@ -24,7 +24,7 @@ from .. import compat, rig_format
 from ..errors import RigError
 from .prepared import Prepared
 from ..nodes import ORDER_INPUT, RIGGED
-from ..rig_format import LEGACY_GP_FRAMES, LEGACY_GP_LAYERS, RIGGED_KEY, modifiers_of
+from ..rig_format import LEGACY_GP_FRAMES, LEGACY_GP_LAYERS, RIGGED_COUNT, RIGGED_KEY, RIGGED_NAMES, modifiers_of
 from .mesh import REST_ATTRIBUTE, read_vectors
 
 # Strokes thinner than this fraction of the drawing's size are swept this wide, so a hairline
@@ -167,6 +167,7 @@ def prepare(obj, settings):
                 name = f"{RIGGED}.{number:03d}"
             marks = np.array([layer.name in chosen for layer in o.data.layers], dtype=bool)
             o.data.attributes.new(name, "BOOLEAN", "LAYER").data.foreach_set("value", marks)
+            _remember_marks(o, marks)
         o.shapedeform[RIGGED_KEY] = name
 
     # Stroke Order is on wherever it costs the drawing nothing.
@@ -229,6 +230,55 @@ def unbind(obj):
 def _rigged_attribute(obj):
     """The name of the attribute marking the layers ``obj``'s rig deforms ("" for all of them)."""
     return obj.shapedeform.get(RIGGED_KEY, RIGGED)  # rigs bound before the key was kept used RIGGED
+
+
+def keep_marks(obj):
+    """Keep the marks of bound ``obj``'s rigged layers on the layers they marked when layers come
+    or go, and drop the marks no rig of its data reads.
+
+    Ctrl+J of another grease pencil into this one merges layer attributes out of order (Blender
+    4.5 by their place in the list, not their name; 5.0-5.2 put the joined layers' values
+    first), which moved the marks onto joined layers, and brings the joined rig's marks, its
+    rig gone with it. The marked layers' names are kept on the object: while the number of
+    layers stays, they follow the marks (a layer renamed or moved); when it changes, the marks
+    are set again from them (a layer added, deleted or joined in)."""
+    data = obj.data
+    if data.library is not None or obj.library is not None:
+        return
+    _forget_stray_marks(obj)
+    name = obj.shapedeform.get(RIGGED_KEY) if obj.shapedeform.is_bound else None
+    attribute = data.attributes.get(name) if name else None
+    if attribute is None or attribute.domain != "LAYER" or attribute.data_type != "BOOLEAN":
+        return
+    layers = [layer.name for layer in data.layers]
+    marks = np.zeros(len(layers), dtype=bool)
+    attribute.data.foreach_get("value", marks)
+    settings = obj.shapedeform
+    if settings.get(RIGGED_COUNT, len(layers)) != len(layers):
+        named = set(settings.get(RIGGED_NAMES, "").split("\n"))
+        marks = np.array([layer in named for layer in layers], dtype=bool)
+        attribute.data.foreach_set("value", marks)
+        data.update_tag()
+    _remember_marks(obj, marks)
+
+
+def _remember_marks(obj, marks):
+    names = "\n".join(layer.name for layer, marked in zip(obj.data.layers, marks) if marked)
+    if obj.shapedeform.get(RIGGED_NAMES) != names or obj.shapedeform.get(RIGGED_COUNT) != len(marks):
+        obj.shapedeform[RIGGED_NAMES], obj.shapedeform[RIGGED_COUNT] = names, len(marks)
+
+
+def _forget_stray_marks(obj):
+    """Remove the layer marks in ``obj``'s data that no rig of the data reads."""
+    data = obj.data
+    marks = [a.name for a in data.attributes if a.name == RIGGED or a.name.startswith(RIGGED + ".")]
+    if not marks:
+        return
+    users = [o for o in (obj, *rig_format.other_rigged_users(obj)) if o.shapedeform.is_bound]
+    read = {_rigged_attribute(o) for o in users}
+    for name in marks:
+        if name not in read:
+            data.attributes.remove(data.attributes[name])
 
 
 def restore_legacy(obj):

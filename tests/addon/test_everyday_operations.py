@@ -253,6 +253,59 @@ def test_grease_pencils_sharing_data_deform_their_own_layers(addon, quiet):
     assert not any(a.name.startswith("sd_rigged") for a in first.data.attributes)
 
 
+@pytest.mark.parametrize("how", ["bound apart", "duplicated with its handles"])
+def test_a_grease_pencil_joined_into_another_brings_no_layer_marks(addon, quiet, how):
+    """Ctrl+J of one rigged grease pencil into another, each rig deforming one chosen layer:
+    the joined layers stay as drawn, the other rig's pose stays, and the joined rig's marks do
+    not stay behind. Both rigs marked their layers under one attribute name, which Join merges,
+    so the other rig deformed a joined layer never chosen for it."""
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    first = bpy.context.active_object
+    first.shapedeform.layers = "Lines"
+    one = Rigged(first)
+    one.move(0.3)
+    if how == "bound apart":
+        bpy.ops.object.grease_pencil_add(type="MONKEY", location=(0.5, 0.0, 0.0))
+        second = bpy.context.active_object
+        second.shapedeform.layers = "Lines"
+        Rigged(second).move(-0.3)
+    else:
+        for obj in (first, one.first, one.second):
+            obj.select_set(True)
+        bpy.context.view_layer.objects.active = first
+        assert bpy.ops.object.duplicate() == {"FINISHED"}
+        second = bpy.context.active_object
+        bpy.context.view_layer.update()
+        assert second.shapedeform.cage != first.shapedeform.cage  # a rig of its own
+        second.shapedeform.handles[1].object.location.z -= 0.3
+        bpy.context.view_layer.update()
+    assert second.data != first.data
+    posed = layer_points(first)
+    before = set(posed)
+
+    checks.select_only(first)
+    second.select_set(True)
+    assert bpy.ops.object.join() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    shown = layer_points(first)
+    joined = [layer for layer in first.data.layers if layer.name not in before]
+    assert len(joined) == 2
+    for layer in joined:
+        drawn = checks.drawing_points(layer.current_frame().drawing)
+        assert shown[layer.name].tobytes() == drawn.astype(np.float64).tobytes(), layer.name
+    for name in before:
+        np.testing.assert_allclose(shown[name], posed[name], atol=1e-6, err_msg=name)
+    marks = [a.name for a in first.data.attributes if a.name.startswith("sd_rigged")]
+    assert marks == [first.shapedeform[addon.shapedeform_addon.rig_format.RIGGED_KEY]]
+
+    # The marks follow a layer renamed, and stay on it when a layer is deleted.
+    first.data.layers["Lines"].name = "Ink"
+    bpy.context.view_layer.update()
+    first.data.layers.remove(joined[0])
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(layer_points(first)["Ink"], posed["Lines"], atol=1e-6)
+
+
 # -- Edit Mode ---------------------------------------------------------------------------------
 
 def interior_vertices(bm, count):
