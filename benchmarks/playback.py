@@ -1,15 +1,17 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Playback: time per frame change with many rigs in a scene, few of them animated.
+"""Playback and handle moves: time per frame change and per move with many rigs in a scene.
 
 Each checkout (this one, and ``--compare-with DIR``) is built and installed like a user in a
 Python process of its own (see ``addon_speed.py``). The scene holds ``--rigs`` copies of
 Blender's grease-pencil monkey, each bound with two handles; the first ``--animated`` have a
-handle keyed across the face over frames 1-100. Every frame change is timed
-(``scene.frame_set``: the add-on's frame handler poses the rigs, then Blender evaluates what
-was written); the table gives the median, 90th percentile and worst over ``--rounds``
-runs of 100 frames each, the checkouts taking turns to go first::
+handle keyed across the face over frames 1-100; ``--props`` Empties nobody rigged stand for the
+rest of a big scene. Every frame change is timed (``scene.frame_set``: the add-on's frame
+handler poses the rigs, then Blender evaluates what was written), then ``MOVES`` moves of the
+last rig's first handle (``location`` changed, then ``view_layer.update()``: the depsgraph
+handler poses it). The table gives the median, 90th percentile and worst over ``--rounds``
+runs, the checkouts taking turns to go first::
 
-    .venv/bin/python benchmarks/playback.py [--rigs 20] [--animated 1] [--rounds 2]
+    .venv/bin/python benchmarks/playback.py [--rigs 20] [--animated 1] [--props 0] [--rounds 2]
         [--compare-with /tmp/before]
 """
 
@@ -26,14 +28,20 @@ import numpy as np
 from addon_speed import _install, _monkey
 
 FRAMES = range(1, 101)
+MOVES = 40
 
 
-def _scene(rigs, animated):
-    """Bind ``rigs`` monkeys side by side, two handles each; key the first ``animated``."""
+def _scene(rigs, animated, props):
+    """Bind ``rigs`` monkeys side by side, two handles each; key the first ``animated``; add
+    ``props`` Empties."""
     import bpy
 
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     scene = bpy.context.scene
+    for k in range(props):
+        prop = bpy.data.objects.new(f"Prop {k}", None)
+        prop.location = (0.3 * (k % 100), 10.0 + 0.3 * (k // 100), 0.0)
+        scene.collection.objects.link(prop)
     for k in range(rigs):
         obj = _monkey()
         obj.location.x = 3.5 * k
@@ -54,16 +62,22 @@ def _scene(rigs, animated):
     return scene
 
 
-def worker(root, rigs, animated, out):
+def worker(root, rigs, animated, props, out):
     import bpy  # noqa: F401  (loads Blender, which puts addon_utils on the path)
 
     _install(root)
-    scene = _scene(rigs, animated)
-    times = []
+    scene = _scene(rigs, animated, props)
+    times = {"frame change": [], "handle move": []}
     for frame in FRAMES:
         start = time.perf_counter()
         scene.frame_set(frame)
-        times.append(time.perf_counter() - start)
+        times["frame change"].append(time.perf_counter() - start)
+    handle = bpy.context.active_object.shapedeform.handles[0].object
+    for k in range(MOVES):
+        start = time.perf_counter()
+        handle.location.x += 0.01 if k % 20 < 10 else -0.01
+        bpy.context.view_layer.update()
+        times["handle move"].append(time.perf_counter() - start)
     with open(out, "w", encoding="utf-8") as fh:
         json.dump(times, fh)
 
@@ -73,7 +87,7 @@ def _run(root, args):
         out = os.path.join(tmp, "times.json")
         env = dict(os.environ, BLENDER_USER_RESOURCES=os.path.join(tmp, "user"))
         proc = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", root, "--json", out,
-                               "--rigs", str(args.rigs), "--animated", str(args.animated)],
+                               "--rigs", str(args.rigs), "--animated", str(args.animated), "--props", str(args.props)],
                               env=env, capture_output=True, text=True)
         if proc.returncode != 0:
             raise SystemExit(f"playback of {root} failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}")
@@ -85,31 +99,36 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rigs", type=int, default=20)
     parser.add_argument("--animated", type=int, default=1)
+    parser.add_argument("--props", type=int, default=0, help="Empties nobody rigged in the scene")
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--compare-with", metavar="DIR")
     parser.add_argument("--worker", metavar="ROOT", help=argparse.SUPPRESS)
     parser.add_argument("--json", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
-        worker(args.worker, args.rigs, args.animated, args.json)
+        worker(args.worker, args.rigs, args.animated, args.props, args.json)
         return 0
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     designs = {"this checkout": here}
     if args.compare_with:
         designs["--compare-with"] = os.path.abspath(args.compare_with)
-    times = {name: [] for name in designs}
+    times = {name: {} for name in designs}
     order = list(designs.items())
     for round_ in range(args.rounds):
         # Each checkout first in every other round: the one run second was measured up to a
         # fifth faster when the same one always went first.
         for name, root in order if round_ % 2 == 0 else order[::-1]:
-            times[name] += _run(root, args)
-    print(f"{args.rigs} monkeys, {args.animated} animated, {len(FRAMES)} frames x {args.rounds} rounds")
-    print("| checkout | ms per frame: median | 90th percentile | worst |")
-    print("|---|---:|---:|---:|")
-    for name, values in times.items():
-        ms = 1000.0 * np.array(values)
-        print(f"| {name} ({designs[name]}) | {np.median(ms):.1f} | {np.percentile(ms, 90):.1f} | {ms.max():.1f} |")
+            for measure, values in _run(root, args).items():
+                times[name].setdefault(measure, []).extend(values)
+    print(f"{args.rigs} monkeys, {args.animated} animated, {args.props} other objects; {len(FRAMES)} frames "
+          f"and {MOVES} handle moves x {args.rounds} rounds")
+    print("| checkout | measure | ms: median | 90th percentile | worst |")
+    print("|---|---|---:|---:|---:|")
+    for name, measures in times.items():
+        for measure, values in measures.items():
+            ms = 1000.0 * np.array(values)
+            print(f"| {name} ({designs[name]}) | {measure} | {np.median(ms):.1f} | {np.percentile(ms, 90):.1f} "
+                  f"| {ms.max():.1f} |")
     return 0
 
 

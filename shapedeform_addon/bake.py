@@ -226,7 +226,7 @@ class Bake:
             if settings.cage is None:
                 raise RigError(f"'{obj.name}' has no cage (its rig was removed, or an older version bound it): "
                                "unbind it and bind it again")
-            if not any(rig_format.present(item.object) for item in settings.handles):
+            if not rig_format.present_items(obj):
                 raise RigError(f"'{obj.name}' has no handles: nothing moves, nothing to bake")
             if not rig_format.modifiers_of(obj):
                 raise RigError(f"'{obj.name}' lost its Shape Deform modifier (applied, removed, or converted): "

@@ -140,7 +140,7 @@ def _rigs_to_bake(names, scene, depsgraph):
         # The scene's objects and the rigs it shows through collection instances; a handle or
         # cage stands for its rig, as in the Bake operator (an instanced rig's too).
         owners = rig_format.owners(scene, depsgraph)
-        parts = [h.object for o in owners for h in o.shapedeform.handles if rig_format.present(h.object)]
+        parts = [h.object for o in owners for h in rig_format.present_items(o)]
         parts += [o.shapedeform.cage for o in owners if o.shapedeform.cage is not None]
         shown = {o.name: o for o in parts + owners + list(scene.objects)}
         missing = [name for name in names if name not in shown]
@@ -155,7 +155,7 @@ def _rigs_to_bake(names, scene, depsgraph):
         broken = [o for o in scene.objects if o.shapedeform.is_bound and o.shapedeform.cage is None
                   and o.library is None]
         objects = [o for o in rig_format.owners(scene, depsgraph) + broken
-                   if any(rig_format.present(h.object) for h in o.shapedeform.handles)]
+                   if rig_format.present_items(o)]
         if not objects:
             raise _UsageError(f"scene '{scene.name}' has no rigs with handles to bake")
     return objects

@@ -122,8 +122,8 @@ def begin(context, obj, ray, pin=False):
         return DragState(obj, handle, True, plane, hit, missing, active)
     # A handle deleted in the viewport lingers as an orphan (in no scene): never grab it. Pins
     # pull nothing and ride on the cage: dragging one would only pull it off the shape.
-    candidates = [item.object for item in settings.handles
-                  if rig_format.present(item.object) and item.object.shapedeform.pin_kind == "POSITION"]
+    candidates = [item.object for item in rig_format.present_items(obj)
+                  if item.object.shapedeform.pin_kind == "POSITION"]
     if not candidates:
         raise RigError(f"'{obj.name}' has no handles: add one, or Ctrl+click to pin the shape")
     centres = np.array([_matrix(h.matrix_world)[:3, 3] for h in candidates]).reshape(-1, 3)

@@ -313,8 +313,8 @@ def reseat_pins(obj):
     RigError
         The rig is a library's: its pins were put back on their points.
     """
-    moved = [item for item in obj.shapedeform.handles
-             if rig_format.present(item.object) and rig_format.PIN_POINT in item and left_its_point(item.object)]
+    moved = [item for item in rig_format.present_items(obj)
+             if rig_format.PIN_POINT in item and left_its_point(item.object)]
     if not moved:
         return False
     refusal = rig_format.local_refusal(obj, "move its pins")
@@ -342,8 +342,8 @@ def put_pins_back(obj):
     """Put the pins of owner ``obj``'s rig that an older version left off their points (where
     moving a pin's Empty moved nothing) back on them, as they pose; what a user moves from now
     on re-seats (:func:`reseat_pins`). Called when a file is opened."""
-    for item in obj.shapedeform.handles:
-        if rig_format.present(item.object) and rig_format.PIN_POINT in item and left_its_point(item.object):
+    for item in rig_format.present_items(obj):
+        if rig_format.PIN_POINT in item and left_its_point(item.object):
             item.object.location = (0.0, 0.0, 0.0)
 
 
@@ -360,8 +360,8 @@ def fit_pin_shapes(obj, rig=None):
         Its rig, when the caller has it (by default the cached one, built if missing; a rig
         that cannot be built is left as it is: posing it says why).
     """
-    pins = [item.object for item in obj.shapedeform.handles if rig_format.present(item.object)
-            and item.object.shapedeform.pin_kind != "POSITION" and item.object.library is None]
+    pins = [item.object for item in rig_format.present_items(obj)
+            if item.object.shapedeform.pin_kind != "POSITION" and item.object.library is None]
     if not pins:
         return
     try:
@@ -390,8 +390,9 @@ def keep_in_collection(obj):
     home = settings.handle_collection
     if obj.library is not None or home is None or home.library is not None or home.override_library is not None:
         return False
+    kept = set(home.objects)
     strays = [item.object for item in settings.handles
-              if rig_format.present(item.object) and home not in item.object.users_collection]
+              if item.object is not None and item.object not in kept and rig_format.present(item.object)]
     for empty in strays:
         home.objects.link(empty)
     return bool(strays)
@@ -401,8 +402,8 @@ def locked_by_override(obj):
     """The present handles and pins of ``obj``'s rig that a library override holds as system
     overrides: Blender's interface will not move or key them (it makes only armatures editable
     when it overrides a Collection Instance)."""
-    return [item.object for item in obj.shapedeform.handles
-            if rig_format.present(item.object) and item.object.override_library is not None
+    return [item.object for item in rig_format.present_items(obj)
+            if item.object.override_library is not None
             and item.object.override_library.is_system_override]
 
 

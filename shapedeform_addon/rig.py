@@ -169,8 +169,7 @@ def signature(obj, depsgraph=None):
     s = obj.shapedeform
     values = _animated(obj, depsgraph).shapedeform
     cage = (s.cage.session_uid, len(s.cage.data.vertices)) if s.cage is not None else None
-    return (cage, tuple(_handle_signature(item.object, depsgraph) if rig_format.present(item.object) else None
-                        for item in s.handles),
+    return (cage, tuple(_handle_signature(item.object, depsgraph) for item in rig_format.present_items(obj)),
             values.weight_laplacian, values.weight_mvc, values.weight_edge, values.preserve_area, values.prevent_flips,
             rig_format.path_carries_rig(obj))
 

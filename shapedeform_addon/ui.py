@@ -13,7 +13,7 @@ KIND_ICONS = {"POSITION": "EMPTY_DATA", "OVERLAP": "SELECT_SUBTRACT", "STARCH": 
 
 class SHAPEDEFORM_UL_handles(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0):
-        if not present(item.object):  # deleted in the viewport: the rig no longer uses it
+        if not present(item.object, data.handle_collection):  # deleted in the viewport: the rig no longer uses it
             layout.label(text=f"{item.object.name if item.object else ''} (deleted)", icon="ERROR")
             return
         kind = item.object.shapedeform.pin_kind
