@@ -132,7 +132,8 @@ def read_graph(obj):
 
 def clear(settings):
     """Drop everything this module keeps on an owner's ``settings`` as ID properties (unbind)."""
-    for key in GRAPH_KEYS + (BAKED, RIGGED_KEY, RIGGED_NAMES, RIGGED_COUNT, CUTOUT_KEY, CUTOUT_ATTRIBUTES) + LEGACY_KEYS:
+    kept = (BAKED, RIGGED_KEY, RIGGED_NAMES, RIGGED_COUNT, CUTOUT_KEY, CUTOUT_ATTRIBUTES)
+    for key in GRAPH_KEYS + kept + LEGACY_KEYS:
         settings.pop(key, None)
 
 

@@ -271,11 +271,12 @@ def _remember_marks(obj, marks):
 def _forget_stray_marks(obj):
     """Remove the layer marks in ``obj``'s data that no rig of the data reads."""
     data = obj.data
-    marks = [a.name for a in data.attributes if a.name == RIGGED or a.name.startswith(RIGGED + ".")]
-    if not marks:
+    own = _rigged_attribute(obj) if obj.shapedeform.is_bound else None
+    marks = [a.name for a in data.attributes
+             if a.name != own and (a.name == RIGGED or a.name.startswith(RIGGED + "."))]
+    if not marks:  # on every update of a rigged drawing: the file's objects are not looked through
         return
-    users = [o for o in (obj, *rig_format.other_rigged_users(obj)) if o.shapedeform.is_bound]
-    read = {_rigged_attribute(o) for o in users}
+    read = {_rigged_attribute(o) for o in rig_format.other_rigged_users(obj) if o.shapedeform.is_bound}
     for name in marks:
         if name not in read:
             data.attributes.remove(data.attributes[name])

@@ -306,6 +306,27 @@ def test_a_grease_pencil_joined_into_another_brings_no_layer_marks(addon, quiet,
     np.testing.assert_allclose(layer_points(first)["Ink"], posed["Lines"], atol=1e-6)
 
 
+def test_a_grease_pencil_joined_into_one_rigged_on_every_layer_leaves_no_marks(addon, quiet):
+    """The joined drawing's rig marked its chosen layers; the rig it is joined into deforms
+    every layer and reads no marks: they went with the joined rig, and Unbind leaves the data
+    with none (they stayed for good)."""
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    first = bpy.context.active_object
+    Rigged(first)
+    bpy.ops.object.grease_pencil_add(type="MONKEY", location=(0.5, 0.0, 0.0))
+    second = bpy.context.active_object
+    second.shapedeform.layers = "Lines"
+    Rigged(second)
+    assert any(a.name.startswith("sd_rigged") for a in second.data.attributes)
+    checks.select_only(first)
+    second.select_set(True)
+    assert bpy.ops.object.join() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    assert not any(a.name.startswith("sd_rigged") for a in first.data.attributes)
+    unbind(first)
+    assert not any(a.name.startswith("sd_rigged") for a in first.data.attributes)
+
+
 # -- Edit Mode ---------------------------------------------------------------------------------
 
 def interior_vertices(bm, count):
