@@ -167,7 +167,7 @@ def prepare(obj, settings):
                 name = f"{RIGGED}.{number:03d}"
             marks = np.array([layer.name in chosen for layer in o.data.layers], dtype=bool)
             o.data.attributes.new(name, "BOOLEAN", "LAYER").data.foreach_set("value", marks)
-            _remember_marks(o, marks)
+            _remember_marks(o, [layer.name for layer in o.data.layers], marks)
         o.shapedeform[RIGGED_KEY] = name
 
     # Stroke Order is on wherever it costs the drawing nothing.
@@ -259,11 +259,12 @@ def keep_marks(obj):
         marks = np.array([layer in named for layer in layers], dtype=bool)
         attribute.data.foreach_set("value", marks)
         data.update_tag()
-    _remember_marks(obj, marks)
+    _remember_marks(obj, layers, marks)
 
 
-def _remember_marks(obj, marks):
-    names = "\n".join(layer.name for layer, marked in zip(obj.data.layers, marks) if marked)
+def _remember_marks(obj, layers, marks):
+    """Keep the names of the marked ones of ``layers`` (their names, in order) on ``obj``."""
+    names = "\n".join(layer for layer, marked in zip(layers, marks) if marked)
     if obj.shapedeform.get(RIGGED_NAMES) != names or obj.shapedeform.get(RIGGED_COUNT) != len(marks):
         obj.shapedeform[RIGGED_NAMES], obj.shapedeform[RIGGED_COUNT] = names, len(marks)
 
