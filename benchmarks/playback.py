@@ -8,11 +8,13 @@ handle keyed across the face over frames 1-100; ``--props`` Empties nobody rigge
 rest of a big scene. Every frame change is timed (``scene.frame_set``: the add-on's frame
 handler poses the rigs, then Blender evaluates what was written), then ``MOVES`` moves of the
 last rig's first handle (``location`` changed, then ``view_layer.update()``: the depsgraph
-handler poses it). The table gives the median, 90th percentile and worst over ``--rounds``
+handler poses it). With ``--bake-frames N`` the animated rigs are first baked over frames 1-N
+(a long shot's bake), so the frame changes time playing bakes (``--compare-with`` a checkout
+that bakes otherwise). The table gives the median, 90th percentile and worst over ``--rounds``
 runs, the checkouts taking turns to go first::
 
     .venv/bin/python benchmarks/playback.py [--rigs 20] [--animated 1] [--props 0] [--rounds 2]
-        [--compare-with /tmp/before]
+        [--bake-frames 0] [--compare-with /tmp/before]
 """
 
 import argparse
@@ -62,11 +64,14 @@ def _scene(rigs, animated, props):
     return scene
 
 
-def worker(root, rigs, animated, props, out):
+def worker(root, rigs, animated, props, bake_frames, out):
     import bpy  # noqa: F401  (loads Blender, which puts addon_utils on the path)
 
-    _install(root)
+    addon = _install(root)
     scene = _scene(rigs, animated, props)
+    if bake_frames:
+        baked = [o for o in scene.objects if o.shapedeform.is_bound and o.shapedeform.handles][:animated]
+        addon.bake.bake_objects(baked, 1, bake_frames)
     times = {"frame change": [], "handle move": []}
     for frame in FRAMES:
         start = time.perf_counter()
@@ -87,7 +92,8 @@ def _run(root, args):
         out = os.path.join(tmp, "times.json")
         env = dict(os.environ, BLENDER_USER_RESOURCES=os.path.join(tmp, "user"))
         proc = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", root, "--json", out,
-                               "--rigs", str(args.rigs), "--animated", str(args.animated), "--props", str(args.props)],
+                               "--rigs", str(args.rigs), "--animated", str(args.animated), "--props", str(args.props),
+                               "--bake-frames", str(args.bake_frames)],
                               env=env, capture_output=True, text=True)
         if proc.returncode != 0:
             raise SystemExit(f"playback of {root} failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}")
@@ -100,13 +106,14 @@ def main(argv=None):
     parser.add_argument("--rigs", type=int, default=20)
     parser.add_argument("--animated", type=int, default=1)
     parser.add_argument("--props", type=int, default=0, help="Empties nobody rigged in the scene")
+    parser.add_argument("--bake-frames", type=int, default=0, help="bake the animated rigs over frames 1-N first")
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--compare-with", metavar="DIR")
     parser.add_argument("--worker", metavar="ROOT", help=argparse.SUPPRESS)
     parser.add_argument("--json", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
-        worker(args.worker, args.rigs, args.animated, args.props, args.json)
+        worker(args.worker, args.rigs, args.animated, args.props, args.bake_frames, args.json)
         return 0
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     designs = {"this checkout": here}
@@ -120,7 +127,8 @@ def main(argv=None):
         for name, root in order if round_ % 2 == 0 else order[::-1]:
             for measure, values in _run(root, args).items():
                 times[name].setdefault(measure, []).extend(values)
-    print(f"{args.rigs} monkeys, {args.animated} animated, {args.props} other objects; {len(FRAMES)} frames "
+    baked = f", baked over {args.bake_frames} frames" if args.bake_frames else ""
+    print(f"{args.rigs} monkeys, {args.animated} animated{baked}, {args.props} other objects; {len(FRAMES)} frames "
           f"and {MOVES} handle moves x {args.rounds} rounds")
     print("| checkout | measure | ms: median | 90th percentile | worst |")
     print("|---|---|---:|---:|---:|")

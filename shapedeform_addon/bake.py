@@ -5,12 +5,16 @@ A bake poses every frame of a range (the frame's pose depends only on the handle
 frame, so the order does not matter), keeps the cage's points in memory, and only when every
 frame is done replaces the previous bake. Cancelling or failing half way therefore changes
 nothing. What it leaves is shape keys on the cage's mesh: the reference key "Basis" holds the
-rest, and each baked frame ``f`` a key ``sd_bake_<f>`` holding that frame's pose, keyed 0 / 1 / 0
-at the frames before, at and after it (linear; the first key has no 0 before it, the last none
-after it; keyed at the animation time each frame shows, which Time Stretching changes). The
+rest, and each baked frame ``f`` a key ``sd_bake_<f>`` holding that frame's pose. The keys are
+absolute (not *Relative*): each sits at its own place in the Key's *Evaluation Time*, and one
+F-curve on that time, keyed linearly at the animation time each baked frame shows (which Time
+Stretching changes), plays them in turn. Relative keys would need an F-curve per frame, which
+Blender evaluates, looking each up by name, on every frame change: 500 baked frames cost 8-11 ms
+per frame change that way, 2,000 frames 130 ms (``benchmarks/playback.py --bake-frames``). The
 object's Shape Deform modifier maps its points through the cage whatever moves the cage, so a
 baked file plays and renders with the extension disabled, and every kind of object (a
-grease-pencil drawing the animator adds later too) plays the same bake.
+grease-pencil drawing the animator adds later too) plays the same bake. Bakes made before
+(relative keys keyed 0 / 1 / 0) play, show live and clear as they did.
 
 Outside the baked range the cage holds the nearest baked frame (the first before the range, the
 last after it), as keyed animation holds its first and last key.
@@ -34,6 +38,7 @@ from .errors import RigError, poll_reason
 
 PREFIX = "sd_bake_"
 MARK = rig_format.BAKE_MARK
+IN_TIME = rig_format.BAKE_IN_TIME
 BAKED = rig_format.BAKED
 _LINEAR = 1  # Keyframe.interpolation 'LINEAR' as foreach_set takes it (the enum's value)
 
@@ -91,36 +96,40 @@ def _remove_keys(cage):
 
 
 def _show_live(cage, points):
-    """Have a baked cage show ``points`` (n, 3) instead of its bake (whose keys are muted, the
-    pose put in its reference key), or, with None, play its bake again."""
+    """Have a baked cage show ``points`` (n, 3) instead of its bake (whose keys are muted and made
+    relative, the pose put in its reference key), or, with None, play its bake again."""
     key = cage.data.shape_keys if cage is not None else None
     if key is None:  # the cage changed under the bake (which then fails): nothing to show
         return
     for block in key.key_blocks:
         if block.name.startswith(PREFIX):
             block.mute = points is not None
+    key.use_relative = points is not None or not key.get(IN_TIME)
     shown = rig_format.rest_of(cage) if points is None else np.ascontiguousarray(points, dtype=np.float32)
     key.reference_key.data.foreach_set("co", shown.ravel())
     cage.data.update()
 
 
 def _write_keys(cage, frames, captured, times):
-    """Key each captured pose at the animation time its frame showed (``times``, the scene's
-    ``frame_current_final``): playback maps a frame to its time for these keys as for the
-    handles', so with Time Stretching a key at the frame itself would be stretched twice."""
+    """Keep each captured pose in a shape key, played at the animation time its frame showed
+    (``times``, the scene's ``frame_current_final``): playback maps a frame to its time for
+    these keys as for the handles', so with Time Stretching a key at the frame itself would be
+    stretched twice."""
     basis = cage.shape_key_add(name="Basis", from_mix=False)
-    # The reference key is the rest, so each baked key shows exactly its pose.
+    # The reference key is the rest, as in the relative bakes of earlier versions.
     basis.data.foreach_set("co", rig_format.rest_of(cage).ravel())
+    for frame, points in zip(frames, captured):
+        # Each new key's place in time follows the last one's (Blender's rule), linear between.
+        cage.shape_key_add(name=key_name(frame), from_mix=False).data.foreach_set("co", points.ravel())
     key = cage.data.shape_keys
-    key[MARK] = True
+    key[MARK] = key[IN_TIME] = True
+    key.use_relative = False  # after adding them: an absolute Key puts a new key at its current time
+    places = np.empty(len(key.key_blocks), dtype=np.float32)
+    key.key_blocks.foreach_get("frame", places)
+    # Keyed at each key's place as Blender reports it, the time meets it exactly: no blend of the
+    # next key at a baked frame.
     bag = _channelbag(key, "KEY", rig_format.bake_action_name(cage))
-    for i, (frame, points) in enumerate(zip(frames, captured)):
-        block = cage.shape_key_add(name=key_name(frame), from_mix=False)
-        block.data.foreach_set("co", points.ravel())
-        path = f'key_blocks["{bpy.utils.escape_identifier(block.name)}"].value'
-        keys = ([(times[i - 1], 0.0)] if i > 0 else []) + [(times[i], 1.0)] + \
-            ([(times[i + 1], 0.0)] if i + 1 < len(frames) else [])
-        _add_fcurve(bag, path, *zip(*keys))
+    _add_fcurve(bag, "eval_time", times, places[1:])
 
 
 def baked_frames(obj):

@@ -68,6 +68,7 @@ GRAPH_KEYS = ("plane", "graph_points", "graph_edges", "graph_loops", "graph_loop
 MODIFIER_NAME = "Shape Deform"
 BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that plays
 BAKE_MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
+BAKE_IN_TIME = "shapedeform_bake_in_time"  # on a bake's Key: absolute keys, played by its Evaluation Time
 BAKE_SOURCE = "shapedeform_baked_from"  # on a bake's Key: a digest of what it was made from (.bake_source.fingerprint)
 BAKE_SOURCE_NUMBERS = "shapedeform_baked_from_numbers"  # ... and its numbers, compared within a tolerance
 # On the owner's settings: the name of the attribute marking the grease-pencil layers its rig
@@ -483,16 +484,34 @@ def _points(mesh, data, name="vector"):
 
 def shown_pose(cage):
     """The pose the cage shows, (n, 3) float64 in rig space: its positions, or where a bake
-    holds it the mix of its shape keys at their current values."""
+    holds it the mix of its shape keys at their current values (relative keys) or time
+    (absolute keys, linear, as a bake makes them)."""
     key = cage.data.shape_keys
     if key is None:
         return _points(cage.data, cage.data.attributes["position"].data).astype(np.float64)
+    if not key.use_relative:
+        return _pose_in_time(cage.data, key)
     mix = _points(cage.data, key.reference_key.data, "co").astype(np.float64)
     for block in key.key_blocks:
         if block != key.reference_key and block.value and not block.mute:
             mix += block.value * (_points(cage.data, block.data, "co").astype(np.float64)
                                   - _points(cage.data, block.relative_key.data, "co"))
     return mix
+
+
+def _pose_in_time(mesh, key):
+    """What absolute shape keys with linear interpolation show at the Key's Evaluation Time: the
+    key at that time, or the blend of the two around it; the first or last key outside them."""
+    blocks = key.key_blocks
+    places = np.empty(len(blocks), dtype=np.float32)
+    blocks.foreach_get("frame", places)
+    time = float(np.clip(np.float32(key.eval_time), places[0], places[-1]))
+    after = min(int(np.searchsorted(places, time)), len(places) - 1)  # the first at or after it
+    shown = _points(mesh, blocks[after].data, "co").astype(np.float64)
+    if places[after] == time or after == 0:
+        return shown
+    share = (time - places[after - 1]) / (places[after] - places[after - 1])
+    return share * shown + (1.0 - share) * _points(mesh, blocks[after - 1].data, "co")
 
 
 # A rig numbers its islands from a first number of its own (:func:`island_numbers`), so that a

@@ -84,8 +84,10 @@ def test_mesh_bake_plays_without_the_extension_and_rebake_replaces(addon):
     animation = obj.shapedeform.cage.data.shape_keys.animation_data
     from bpy_extras import anim_utils
     bag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
-    assert len(bag.fcurves) == len(FRAMES)
-    assert [tuple(k.co) for k in bag.fcurves[2].keyframe_points] == [(2.0, 0.0), (3.0, 1.0), (4.0, 0.0)]
+    # One curve plays the keys in turn (an F-curve per key made each frame change search them all).
+    assert [curve.data_path for curve in bag.fcurves] == ["eval_time"]
+    blocks = obj.shapedeform.cage.data.shape_keys.key_blocks
+    assert [tuple(k.co) for k in bag.fcurves[0].keyframe_points] == [(f, blocks[i + 1].frame) for i, f in enumerate(FRAMES)]
     assert len(bpy.data.actions) == 2  # the handle's and the bake's
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
 
@@ -690,6 +692,69 @@ def test_a_stepped_bake_bakes_its_last_frame(addon):
     bpy.context.view_layer.objects.active = obj
     assert bpy.ops.shapedeform.bake(frame_start=3, frame_end=10, step=2) == {"FINISHED"}
     assert cage_keys(obj) == ["Basis", "sd_bake_0003", "sd_bake_0005", "sd_bake_0007", "sd_bake_0009", "sd_bake_0010"]
+
+
+def test_between_and_outside_baked_frames_the_pose_blends_and_holds_as_drawn(addon):
+    """A stepped bake (frames 2, 5, 8) plays linear blends between its frames (frame 3.5 is half
+    of 2 and half of 5, as motion blur's subframes see it) and holds the nearest baked frame
+    outside them; what the add-on reads as the shown pose (drawn over a baked rig, where handles
+    are added) is what Blender plays, at each of those times."""
+    rig_format = addon.shapedeform_addon.rig_format
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    scene = bpy.context.scene
+    cage = obj.shapedeform.cage
+
+    def shown():
+        return np.asarray(rig_format.shown_pose(cage), dtype=np.float32)
+
+    addon.shapedeform_addon.bake.bake_objects([obj], 2, 8, step=3)
+    baked = {}
+    for frame in (2, 5, 8):
+        scene.frame_set(frame)
+        baked[frame] = checks.evaluated_mesh_points(cage).copy()
+    assert np.abs(baked[8] - baked[2]).max() > 0.3
+    for frame, subframe, expected in ((3, 0.5, (baked[2] + baked[5]) / 2), (7, 0.0, (baked[5] + 2 * baked[8]) / 3),
+                                      (0, 0.0, baked[2]), (12, 0.0, baked[8]), (5, 0.0, baked[5])):
+        scene.frame_set(frame, subframe=subframe)
+        played = checks.evaluated_mesh_points(cage)
+        np.testing.assert_allclose(played, expected, atol=1e-5, err_msg=f"frame {frame + subframe}")
+        np.testing.assert_allclose(shown(), played, atol=1e-5, err_msg=f"frame {frame + subframe}")
+
+
+def test_an_earlier_versions_bake_plays_is_drawn_and_is_replaced(addon):
+    """Bakes made before the keys were absolute (a relative key per frame, keyed 0 / 1 / 0) keep
+    playing, are read as shown, stay put while a new bake poses live, and a new bake replaces
+    them with one curve."""
+    shapedeform = addon.shapedeform_addon
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    expected = live(lambda: checks.evaluated_mesh_points(obj))
+    cage = obj.shapedeform.cage
+    poses = live(lambda: checks.evaluated_mesh_points(cage))
+    # As an earlier version wrote it.
+    cage.shape_key_add(name="Basis", from_mix=False).data.foreach_set("co", shapedeform.rig_format.rest_of(cage).ravel())
+    key = cage.data.shape_keys
+    key[shapedeform.rig_format.BAKE_MARK] = True
+    for frame in FRAMES:
+        block = cage.shape_key_add(name=shapedeform.bake.key_name(frame), from_mix=False)
+        block.data.foreach_set("co", poses[frame].ravel())
+        for at, value in ((frame - 1, 0.0), (frame, 1.0), (frame + 1, 0.0)):
+            if at in FRAMES:
+                block.value = value
+                block.keyframe_insert("value", frame=at)
+    obj.shapedeform["baked"] = [1, 6, 1]
+    scene = bpy.context.scene
+    for frame in (4, 2):
+        scene.frame_set(frame)
+        np.testing.assert_allclose(checks.evaluated_mesh_points(obj), expected[frame], atol=1e-5)
+        np.testing.assert_allclose(shapedeform.rig_format.shown_pose(cage), poses[frame], atol=1e-5)
+
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    key = cage.data.shape_keys
+    assert not key.use_relative and len(key.key_blocks) == len(FRAMES) + 1
+    assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
 
 
 def test_unbinding_a_copy_of_a_baked_rig_leaves_a_file_that_saves(addon, tmp_path):
