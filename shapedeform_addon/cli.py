@@ -137,12 +137,14 @@ def _rigs_to_bake(names, scene, depsgraph):
     """The rig owners to bake: those ``names`` (objects, or their handles or cages) name, or
     every rig of ``scene`` with handles when ``names`` is empty."""
     if names:
-        # The scene's objects and the rigs it shows through collection instances; a handle or
-        # cage stands for its rig, as in the Bake operator (an instanced rig's too).
+        # The objects the scene shows, linked ones too (the bake refuses those by name); a handle
+        # or cage stands for its rig, as in the Bake operator (an instanced rig's too). Named
+        # alike, a local object wins over a linked one.
         owners = rig_format.owners(scene, depsgraph)
         parts = [h.object for o in owners for h in rig_format.present_items(o)]
         parts += [o.shapedeform.cage for o in owners if o.shapedeform.cage is not None]
-        shown = {o.name: o for o in parts + owners + list(scene.objects)}
+        objects = sorted(rig_format.shown_objects(scene), key=lambda o: o.library is None)
+        shown = {o.name: o for o in objects + parts + owners}
         missing = [name for name in names if name not in shown]
         if missing:
             raise _UsageError(f"no object named {', '.join(map(repr, missing))} in scene '{scene.name}'")
@@ -150,15 +152,37 @@ def _rigs_to_bake(names, scene, depsgraph):
         unbound = [o.name for o in objects if not o.shapedeform.is_bound]
         if unbound:
             raise _UsageError(f"not rigged with Shape Deform: {', '.join(map(repr, unbound))}")
-    else:
-        # Bound objects whose rig broke (a cage deleted by hand) too: the bake then says why.
-        broken = [o for o in scene.objects if o.shapedeform.is_bound and o.shapedeform.cage is None
-                  and o.library is None]
-        objects = [o for o in rig_format.owners(scene, depsgraph) + broken
-                   if rig_format.present_items(o)]
-        if not objects:
-            raise _UsageError(f"scene '{scene.name}' has no rigs with handles to bake")
+        return objects
+    # Bound objects whose rig broke (a cage deleted by hand) too: the bake then says why.
+    broken = [o for o in scene.objects if o.shapedeform.is_bound and o.shapedeform.cage is None
+              and o.library is None]
+    objects = [o for o in rig_format.owners(scene, depsgraph) + broken if rig_format.present_items(o)]
+    frozen = _linked_unbaked(scene)
+    if frozen and not objects:
+        raise RigError(_frozen_message(frozen))
+    if not objects:
+        raise _UsageError(f"scene '{scene.name}' has no rigs with handles to bake")
+    if frozen:
+        print(f"{COMMAND}: warning: {_frozen_message(frozen)}", file=sys.stderr, flush=True)
     return objects
+
+
+def _linked_unbaked(scene):
+    """The rigs ``scene`` shows that are linked without an override and have no bake: nothing
+    here poses them."""
+    found = [rig_format.owner_of(o) for o in rig_format.shown_objects(scene)
+             if o.library is not None and o.shapedeform.is_bound]
+    return [o for o in dict.fromkeys(found) if o is not None and o.library is not None
+            and rig_format.present_items(o) and not rig_format.is_baked(o)]
+
+
+def _frozen_message(rigs):
+    one = len(rigs) == 1
+    named = ", ".join(f"'{o.name}' (from '{o.library.name}')" for o in rigs)
+    return (f"{named} {'is' if one else 'are'} linked without a library override and not baked in "
+            f"{'its library' if one else 'their libraries'}: nothing here poses {'it' if one else 'them'}, so "
+            f"{'it renders' if one else 'they render'} as the library file was saved. Bake in the library file, "
+            "or make a library override here (Object > Library Override) and bake again")
 
 
 def main(argv):

@@ -383,6 +383,10 @@ def pose_safely(obj, depsgraph=None, final=None):
     if not message and not rig_format.modifiers_of(owner):
         message = (f"'{owner.name}' lost its Shape Deform modifier (applied, removed, or converted): "
                    "its handles no longer move it; Unbind removes the rig and keeps the shape")
+        try:  # the modifier's group is a placeholder of a missing library's
+            rig_format.require_posable(owner, "its handles move it again")
+        except RigError as err:
+            message = str(err)
     if owner.shapedeform.status != message:
         owner.shapedeform.status = message
     return message

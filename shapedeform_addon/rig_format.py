@@ -729,12 +729,29 @@ def local_refusal(obj, action):
 def require_posable(obj, action):
     """Raise RigError when ``obj`` is linked from a library without an override: nothing in
     this file can move its handles or keep what is written into its cage (Blender drops edits
-    of linked data on saving). ``action`` is a phrase: "bake it"."""
+    of linked data on saving), or when the file of the library it comes from is missing.
+    ``action`` is a phrase: "bake it"."""
+    library = missing_library(obj)
+    if library is not None:
+        raise RigError(f"'{obj.name}' comes from the library '{library.name}', whose file "
+                       f"{bpy.path.abspath(library.filepath, library=library.library)} is missing: find it (File > "
+                       "External Data > Find Missing Files, or Relocate in the Outliner's Blender File view), "
+                       f"then {action}")
     if obj.library is None:
         return
     raise RigError(f"'{obj.name}' comes from the library '{obj.library.name}' without a library override: "
                    f"{action} in that file, or make a library override of it here (Object > Library "
                    "Override) to move its handles, key them and bake")
+
+
+def missing_library(obj):
+    """The library whose file is missing that ``obj`` (linked, or a library override) comes
+    from, or None. Blender then puts placeholders in for the linked data (the override's
+    reference, its modifier's node group, its cage), which pose nothing."""
+    reference = obj.override_library.reference if obj.override_library is not None else obj
+    if reference is None or reference.library is None or not reference.is_missing:
+        return None
+    return reference.library
 
 
 def is_baked(obj):
@@ -772,31 +789,20 @@ def bake_source(cage):
 
 
 def owners(scene, depsgraph=None):
-    """Rig owners that ``scene`` shows: its objects, and those of the collections its objects
-    instance, at any depth (a character shown in a shot by a Collection Instance, or in a set
-    that is itself instanced), and the owners of the duplicates following a rig it shows (a
-    copy moved to another scene poses there with its rig's handles, which its modifier has
-    Blender evaluate wherever it is). Linked rigs (library data without an override) are left
-    out: nothing here can pose them (a bake in their own file can). The scenes ``scene`` shows
-    as its Background Set, and theirs, are shown too.
+    """Rig owners that ``scene`` shows (:func:`shown_objects`: a character shown in a shot by a
+    Collection Instance, in a set that is itself instanced, or in a Background Set too), and the
+    owners of the duplicates following a rig it shows (a copy moved to another scene poses there
+    with its rig's handles, which its modifier has Blender evaluate wherever it is). Linked rigs
+    (library data without an override) are left out: nothing here can pose them (a bake in their
+    own file can).
 
     Rigs the scene shows by other ways (a Geometry Nodes *Collection Info* node, particles
     rendering a collection) are found in ``depsgraph`` (by default the context view layer's,
     when it is ``scene``'s): those it evaluates are shown.
     """
-    found, seen = [], set()
-    objects, shown = list(scene.objects), {scene.session_uid}
-    backdrop = scene.background_set
-    while backdrop is not None and backdrop.session_uid not in shown:
-        shown.add(backdrop.session_uid)
-        objects.extend(backdrop.objects)
-        backdrop = backdrop.background_set
+    found = []
     bound = set(bound_objects())
-    for obj in objects:  # grows with the objects of each instanced collection, in scene order
-        collection = obj.instance_collection if obj.instance_type == "COLLECTION" else None
-        if collection is not None and collection.session_uid not in seen:
-            seen.add(collection.session_uid)  # an instance cycle ends here
-            objects.extend(collection.all_objects)
+    for obj in shown_objects(scene):
         if obj not in bound:  # most of a big scene, every frame: a set lookup, no property read
             continue
         owner = owner_of(obj)
@@ -804,6 +810,23 @@ def owners(scene, depsgraph=None):
             found.append(owner)
     found += _evaluated_owners(scene, depsgraph, set(found))
     return list(dict.fromkeys(found))  # shown twice, posed once
+
+
+def shown_objects(scene):
+    """The objects ``scene`` shows, linked ones too, in scene order: its own, its Background
+    Sets', and those of the collections they instance, at any depth (an object may come twice)."""
+    objects, shown, seen = list(scene.objects), {scene.session_uid}, set()
+    backdrop = scene.background_set
+    while backdrop is not None and backdrop.session_uid not in shown:
+        shown.add(backdrop.session_uid)
+        objects.extend(backdrop.objects)
+        backdrop = backdrop.background_set
+    for obj in objects:  # grows with the objects of each instanced collection
+        collection = obj.instance_collection if obj.instance_type == "COLLECTION" else None
+        if collection is not None and collection.session_uid not in seen:
+            seen.add(collection.session_uid)  # an instance cycle ends here
+            objects.extend(collection.all_objects)
+    return objects
 
 
 def _evaluated_owners(scene, depsgraph, known):

@@ -7,6 +7,9 @@ Every check reads back what Blender evaluated. Where the design before the modif
 wrote each pose into the object's data) went wrong, the issue's defect is named in the test.
 """
 
+import os
+import re
+
 import bmesh
 import bpy
 import numpy as np
@@ -1599,11 +1602,13 @@ def test_edits_made_while_the_extension_was_disabled_show_on_enable_and_on_open(
     check()
 
 
-def test_a_linked_character_instanced_in_a_shot_is_left_as_the_library_has_it(addon, tmp_path, quiet):
+def test_a_linked_character_instanced_in_a_shot_is_left_as_the_library_has_it(addon, tmp_path, capfd):
     """A rigged character linked into a shot without an override, shown by a Collection
     Instance: nothing here can pose it, so its cage stays the library's (the frame handler
     posed it from handles it took for deleted and swapped the library's cage mesh for a local
-    copy at rest)."""
+    copy at rest). The command line says so: named, it is refused as linked (it was "no object
+    named 'Grid'"); in a bake of every rig it is named as rendering unposed (it was skipped
+    without a word, or "no rigs with handles to bake" when it was the only one)."""
     _, obj = character_collection(tmp_path)
     rig = Rigged(obj)
     rig.move(0.5)
@@ -1623,6 +1628,21 @@ def test_a_linked_character_instanced_in_a_shot_is_left_as_the_library_has_it(ad
     assert obj.shapedeform.cage.data.library is not None
     assert set(bpy.data.meshes) == meshes
     np.testing.assert_allclose(instanced_points(obj), posed, atol=1e-5)
+
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
+    bake = addon.shapedeform_addon.cli.main
+    capfd.readouterr()
+    assert bake(["bake", "--frames", "1-3", "--objects", "Grid"]) == 1
+    assert "'Grid' comes from the library 'character.blend' without a library override" in capfd.readouterr().err
+    unposed = "'Grid' (from 'character.blend') is linked without a library override and not baked in its library"
+    assert bake(["bake", "--frames", "1-3"]) == 1
+    assert unposed in capfd.readouterr().err
+    Rigged(grid("Local")).key_move(0.3, 3)  # a rig of the shot's own bakes; the linked one is named
+    bpy.ops.wm.save_mainfile()
+    assert bake(["bake", "--frames", "1-3"]) == 0
+    out, err = capfd.readouterr()
+    assert "of Local" in out and unposed in err and "Traceback" not in out + err
+    assert addon.shapedeform_addon.rig_format.is_baked(bpy.data.objects["Local"])
 
 
 def test_a_character_linked_without_an_override_refuses_what_would_be_lost(addon, tmp_path, capfd):
@@ -1658,6 +1678,30 @@ def test_a_character_linked_without_an_override_refuses_what_would_be_lost(addon
     capfd.readouterr()
     assert addon.shapedeform_addon.cli.main(["bake", "--frames", "1-3", "--objects", "Grid"]) == 1
     assert refusal in capfd.readouterr().err
+    assert addon.shapedeform_addon.cli.main(["bake", "--frames", "1-3"]) == 1  # was "no rigs with handles"
+    assert "'Grid' (from 'character.blend') is linked without a library override" in capfd.readouterr().err
+
+
+def test_baking_an_override_whose_library_is_missing_names_the_missing_file(addon, tmp_path, quiet, capfd):
+    """A shot whose character file was moved away: its override's rig has nothing to pose (its
+    cage and modifier's group are the library's), and the bake said the rig had "lost its Shape
+    Deform modifier". The command line, the Bake operator and the rig's status name the missing
+    file instead."""
+    library, obj = overridden_character(tmp_path)
+    shot = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    os.rename(library, str(tmp_path / "moved.blend"))
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    capfd.readouterr()
+    missing = r"comes from the library 'character\.blend', whose file .*character\.blend is missing"
+    assert addon.shapedeform_addon.cli.main(["bake", "--frames", "1-3"]) == 1
+    assert re.search(missing, capfd.readouterr().err)
+    obj = next(o for o in bpy.context.scene.objects if o.name == "Grid")
+    checks.select_only(obj)
+    with pytest.raises(RuntimeError, match=missing):
+        bpy.ops.shapedeform.bake(frame_start=1, frame_end=3)
+    bpy.context.scene.frame_set(2)  # the sidebar's status says so too
+    assert re.search(missing, obj.shapedeform.status)
 
 
 def test_a_rig_in_a_background_set_follows_its_keys_in_the_scene_it_shows_in(addon, tmp_path, quiet):
