@@ -274,9 +274,17 @@ class Bake:
         Raises
         ------
         RigError
-            A frame could not be posed (the message names the object); call :meth:`abort`.
+            A frame could not be posed (the message names it and the object); call :meth:`abort`.
         """
         frame = self.frames[self.done]
+        try:
+            self._pose_frame(frame)
+        except RigError as err:
+            raise RigError(f"frame {frame}: {err}") from None
+        self.done += 1
+        return self.done == self.total
+
+    def _pose_frame(self, frame):
         with handlers.paused():
             self.scene.frame_set(frame)
         self.times.append(self.scene.frame_current_final)
@@ -296,8 +304,6 @@ class Bake:
             chain = [obj for obj in chain if obj not in moved or self._pose(obj, depsgraph, posed)]
         for obj in self.objects:
             self.captured[obj.name].append(posed[obj.name])
-        self.done += 1
-        return self.done == self.total
 
     def _pose(self, obj, depsgraph, posed):
         """Pose ``obj``'s rig at this frame, keeping a baked rig's pose in ``posed``; False when

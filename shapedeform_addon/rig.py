@@ -299,6 +299,17 @@ def final_quality():
     return bpy.app.background or bpy.app.is_job_running("RENDER")
 
 
+def _far_handle(rig, frames):
+    """Which handle, if one, is so far from the shape that a solve overflows: ", its handle 'X'
+    is 1e+30 away" (distance from the shape's rest, in its sizes), else ""."""
+    if not len(frames):
+        return ""
+    away = np.abs(frames[:, :2, 2] - rig.graph.points.mean(axis=0)).max(axis=1) / rig.graph.size
+    far = int(np.argmax(away))
+    return f": its handle '{rig.handle_objects[far].name}' is {away[far]:.3g} shape sizes away" \
+        if away[far] > 1e6 else ""
+
+
 def handle_frames(obj, depsgraph=None):
     """The handles' 2D frames (h, 3, 3) of ``obj``'s rig as ``depsgraph`` evaluated them."""
     return get(obj).frames(rig_format.owner_of(obj.original), depsgraph)
@@ -323,6 +334,7 @@ def pose(obj, depsgraph=None, final=None):
         rig_format.follow_library_cage(owner.shapedeform.cage)  # here, never while drawing
     rig = get(obj, depsgraph)
     frames = rig.frames(owner, depsgraph)
+    _finite([np.abs(frame).max() for frame in frames], rig.handle_objects, "transform")
     settings = owner.shapedeform
     budgets = _animated(owner, depsgraph).shapedeform
     final = final_quality() if final is None else final
@@ -333,7 +345,7 @@ def pose(obj, depsgraph=None, final=None):
     except (ValueError, np.linalg.LinAlgError, FloatingPointError) as err:
         raise RigError(f"'{owner.name}': {_in_interface_terms(err)}") from None
     if not np.all(np.isfinite(points)):
-        raise RigError(f"'{owner.name}': the solve gave non-finite positions; kept the last pose")
+        raise RigError(f"'{owner.name}': the solve gave non-finite positions{_far_handle(rig, frames)}")
     rig.settled = rig.settled or final
     if not rig_format.is_baked(owner):
         rig_format.write_pose(settings.cage, np.ascontiguousarray(points), rig.settled)

@@ -8,6 +8,7 @@ Python entry point imports."""
 
 from functools import partial
 from types import SimpleNamespace
+import re
 
 import addon_utils
 import bpy
@@ -590,6 +591,33 @@ def test_a_bake_that_cannot_be_written_changes_nothing(addon):
     assert cage_keys(mesh) == keys
     assert list(mesh.shapedeform["baked"]) == list(pencil.shapedeform["baked"]) == [1, 6, 1]
     assert frame_numbers(pencil) == before
+
+
+@pytest.mark.parametrize("place, reason", [(float("nan"), "'{handle}': its transform is not a finite number"),
+                                           (1e30, "'Grid': the solve gave non-finite positions: its handle "
+                                                  "'{handle}' is [0-9.]+e\\+29 shape sizes away")])
+def test_a_frame_that_cannot_be_posed_is_named_and_nothing_is_baked(addon, tmp_path, capfd, place, reason):
+    """A handle keyed at frame 4 to NaN, or so far that the solve overflows (frame 2 is on the
+    way there): the bake stops, names the frame and the handle (it said "kept the last pose", of
+    no frame), and leaves the file and the rig as they were, from the command line and the
+    operator alike."""
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    handle = obj.shapedeform.handles[1].object
+    handle.location.x = place
+    handle.keyframe_insert("location", frame=4)
+    path = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    saved = path.read_bytes()
+    capfd.readouterr()
+    assert addon.shapedeform_addon.cli.main(["bake", "--frames", "1-6"]) == 1
+    said = "frame 2: " + reason.format(handle=re.escape(handle.name))
+    assert re.search(said, capfd.readouterr().err)
+    assert path.read_bytes() == saved
+    checks.select_only(obj)
+    with pytest.raises(RuntimeError, match=said):
+        bpy.ops.shapedeform.bake(frame_start=1, frame_end=6)
+    assert cage_keys(obj) == [] and "baked" not in obj.shapedeform
 
 
 # -- issue 15, defect 12: one rule outside the baked range
