@@ -62,7 +62,8 @@ def parser():
     sub.add_argument("--frames", type=frame_range, metavar="START-END",
                      help="frames to bake, e.g. 1-250 (default: the scene's frame range)")
     sub.add_argument("--step", type=int, default=1, help="bake every n-th frame (default 1)")
-    sub.add_argument("--objects", nargs="+", metavar="NAME", help="only these objects (default: every rig)")
+    sub.add_argument("--objects", nargs="+", action="extend", metavar="NAME",
+                     help="only these objects (default: every rig); may be given more than once")
     sub.add_argument("--scene", metavar="NAME", help="scene to bake (default: the file's active scene)")
     sub.add_argument("--view-layer", metavar="NAME",
                      help="view layer whose evaluation is baked (default: the scene's active one)")

@@ -229,6 +229,7 @@ def test_command_line_bakes_a_saved_file(addon, tmp_path, capsys):
     for bad, message in [([], "required"), (["bake", "--frames", "ten"], "not a frame range"),
                          (["bake", "--frames", "9-2"], "comes before"),
                          (["bake", "--objects", "Nobody"], "no object named 'Nobody'"),
+                         (["bake", "--objects", "Nobody", "--objects", "Grid"], "no object named 'Nobody'"),  # both kept
                          (["bake", "--output", str(tmp_path / "missing" / "x.blend")], "does not exist"),
                          (["bake", "--output", ""], "--output is empty"),  # an unset farm variable
                          (["bake", "--output", str(tmp_path)], "is a folder"),
