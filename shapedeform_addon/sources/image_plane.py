@@ -20,7 +20,7 @@ from mathutils import Matrix
 
 from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane, transform_points
-from ...solver.rigging.silhouette import image_cutout, map_by_triangles
+from ...solver.rigging.silhouette import image_cutout, map_by_triangles, specks
 from .. import rig_format
 from ..rig_format import CUTOUT_ATTRIBUTES, CUTOUT_KEY
 from ..errors import RigError
@@ -190,11 +190,12 @@ def prepare(obj, settings):
     height, width = alpha.shape
     if width * height < 2:
         raise RigError(f"'{obj.name}': its image '{node.image.name}' is a single pixel: too small to cut a shape from")
+    alpha, alpha_notes = _alpha_as_rendered(node, alpha)
     corners = mesh_source.positions(quad).astype(np.float64)
     loop_vertices = np.empty(len(quad.loops), dtype=np.int32)
     quad.loops.foreach_get("vertex_index", loop_vertices)
     picture_layer, changed = _picture_uv_layer(quad, node)
-    notes = [advice, *_reading_notes(obj, node, changed)]
+    notes = [advice, *alpha_notes, *_reading_notes(obj, node, changed)]
     uv = _loop_uvs(picture_layer)
     try:
         plane = fit_plane(corners)
@@ -274,6 +275,48 @@ def _new_cutout(quad, vertices, triangles, uv_maps, active_uv, render_uv, materi
     cutout.polygons.foreach_set("material_index", np.full(len(cutout.polygons), material_index, np.int32))
     cutout.update()
     return cutout
+
+
+def _alpha_as_rendered(node, alpha):
+    """``alpha`` (H, W) as the plane's material shows it, and what Bind says about it ([str]).
+
+    Nothing reading the picture's alpha, the plane renders whole: so is it rigged (all ones; the
+    cut-out cut it to the picture's alpha, and the render lost the rest of the plane). A node
+    on the way to the shader (an Invert, a Math node) may show other pixels than the alpha
+    says: the cut-out is the alpha's, and Bind says so. Specks the cut-out leaves out are told."""
+    reader = _alpha_reader(node)
+    if reader is None:
+        return np.ones_like(alpha), [f"nothing reads the alpha of its picture '{node.image.name}', so the whole "
+                                     "plane is rigged, as it renders (wire the picture's Alpha to the shader's to "
+                                     "cut the plane to the picture)"]
+    notes = [f"'{reader}' changes its picture's alpha on the way to the shader: what is cut out may not be "
+             "what renders"] if reader else []
+    count, strongest = specks(alpha)
+    if count:
+        notes.append(f"{count} {'speck' if count == 1 else 'specks'} of its picture with less ink than one "
+                     f"opaque pixel (the most opaque {strongest:.0%}) {'is' if count == 1 else 'are'} left out "
+                     "of the cut-out")
+    return alpha, notes
+
+
+def _alpha_reader(node):
+    """How the material reads image ``node``'s alpha: "" straight into a shader's Alpha (through
+    reroutes; or a Mix Shader's factor over a Transparent BSDF), None when nothing reads it, else
+    the name of a node on the way that may change it."""
+    changed = None
+    for link in node.outputs["Alpha"].links:
+        while link.to_node.type == "REROUTE" and link.to_node.outputs[0].links:
+            link = link.to_node.outputs[0].links[0]
+        to, socket = link.to_node, link.to_socket
+        if to.type == "REROUTE":
+            continue  # leads nowhere
+        if socket.name == "Alpha" and any(output.type == "SHADER" for output in to.outputs):
+            return ""
+        first = to.inputs[1].links if to.type == "MIX_SHADER" and socket == to.inputs[0] else ()
+        if first and first[0].from_node.type == "BSDF_TRANSPARENT":
+            return ""
+        changed = changed or to.name
+    return changed
 
 
 def _reading_notes(obj, node, changed):

@@ -15,7 +15,7 @@ from scipy import ndimage
 from ..shapes import polygonal_part, geometry_rings, shape_geometry
 from ..trace import coverage, trace_silhouette
 
-__all__ = ["stroke_silhouette", "image_cutout", "map_by_triangles"]
+__all__ = ["stroke_silhouette", "image_cutout", "specks", "map_by_triangles"]
 
 
 def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, tolerance=None, areas=()):
@@ -146,16 +146,44 @@ def image_cutout(image, margin=1.0, level=1.0 / 255.0, tolerance=0.5, window=Non
 
 
 def _without_dust(alpha, level):
-    """``alpha`` (H, W) with every group of visible pixels (at or above ``level``, touching by a
-    side or a corner) that holds less ink than one opaque pixel made transparent: specks nobody
-    sees (a soft brush's or a scan's), each of which would otherwise be an island of the
-    cut-out, and of the graph."""
+    """``alpha`` (H, W) with its specks (:func:`specks`) made transparent: nobody sees them (a
+    soft brush's or a scan's), and each would otherwise be an island of the cut-out, and of the
+    graph."""
+    faint = _specks_mask(alpha, level)
+    return np.where(faint, 0.0, alpha) if faint.any() else alpha
+
+
+def _specks_mask(alpha, level):
     labels, count = ndimage.label(alpha >= level, structure=np.ones((3, 3), dtype=bool))
     if count == 0:
-        return alpha
+        return np.zeros(alpha.shape, dtype=bool)
     ink = ndimage.sum_labels(alpha, labels, index=np.arange(1, count + 1))
-    faint = np.concatenate([[False], ink < 1.0])[labels]
-    return np.where(faint, 0.0, alpha) if faint.any() else alpha
+    return np.concatenate([[False], ink < 1.0])[labels]
+
+
+def specks(image, level=1.0 / 255.0):
+    """What :func:`image_cutout` leaves out: each group of visible pixels (at or above ``level``,
+    touching by a side or a corner) holding less ink than one opaque pixel.
+
+    Parameters
+    ----------
+    image : (H, W, 4) or (H, W) array_like
+        As :func:`image_cutout` takes it.
+    level : float
+        Alpha at or above which a pixel is visible.
+
+    Returns
+    -------
+    count : int
+        How many groups are left out.
+    strongest : float
+        The highest alpha among their pixels (0.0 when there are none).
+    """
+    alpha = coverage(image)
+    faint = _specks_mask(alpha, level)
+    if not faint.any():
+        return 0, 0.0
+    return int(ndimage.label(faint, structure=np.ones((3, 3), dtype=bool))[1]), float(alpha[faint].max())
 
 
 def map_by_triangles(source, target, triangles, points):

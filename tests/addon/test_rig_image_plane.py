@@ -795,3 +795,50 @@ def test_a_copy_whose_cut_out_takes_a_name_the_quad_still_lists_gets_a_quad_of_i
     unbind(first)  # releases the copy
     copy.data.transform(Matrix.Scale(2.0, 4))
     np.testing.assert_array_equal(checks.mesh_points(first), quad_points)
+
+
+@pytest.mark.parametrize("wiring", ["unwired", "inverted"])
+def test_a_plane_whose_material_does_not_show_its_alpha_is_rigged_as_it_renders(addon, tmp_path, capsys, wiring):
+    """The picture's Alpha unwired, the plane renders whole: it is rigged whole and renders the
+    same after Bind (it was cut to the alpha: 1,536 lit pixels became 473). Read through an
+    Invert node, what is cut out may not be what renders: Bind says so (it said nothing)."""
+    import renders
+
+    obj, _ = import_picture(tmp_path)
+    tree = obj.active_material.node_tree
+    image = next(n for n in tree.nodes if n.type == "TEX_IMAGE")
+    shader = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    tree.links.remove(image.outputs["Alpha"].links[0])
+    if wiring == "inverted":
+        invert = tree.nodes.new("ShaderNodeInvert")
+        tree.links.new(image.outputs["Alpha"], invert.inputs["Color"])
+        tree.links.new(invert.outputs["Color"], shader.inputs["Alpha"])
+    quad = checks.mesh_points(obj)
+    renders.camera_over((0.0, 0.0), 1.6)
+    before = renders.render(tmp_path / "before.png", engine="CYCLES", size=40, samples=4)
+    capsys.readouterr()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    said = capsys.readouterr().out
+    if wiring == "inverted":
+        assert f"'{invert.name}' changes its picture's alpha on the way to the shader" in said
+        return
+    assert "nothing reads the alpha of its picture 'picture.png', so the whole plane is rigged" in said
+    lit = lambda pixels: pixels[..., :3].max(axis=2) > 0.05
+    after = renders.render(tmp_path / "after.png", engine="CYCLES", size=40, samples=4)
+    assert lit(before).sum() > 1000 and (lit(after) == lit(before)).all()
+    lo, hi = quad.min(axis=0), quad.max(axis=0)
+    assert checks.area(obj, checks.mesh_points(obj)) == pytest.approx(np.prod((hi - lo)[:2]), rel=1e-6)
+
+
+def test_bind_says_how_many_specks_of_the_picture_it_leaves_out(addon, tmp_path, capsys):
+    """A lone pixel at 90% opacity holds less ink than one opaque pixel: the cut-out leaves it
+    out as a speck, and Bind says so (it dropped it without a word)."""
+    yy, xx = np.mgrid[:H, :W]
+    pixels = np.ones((H, W, 4), np.float32)
+    pixels[..., 3] = ((xx - 40) ** 2 + (yy - 22) ** 2) < 15 ** 2
+    pixels[5, 5, 3] = 0.9
+    checks.import_picture(tmp_path, "speck", pixels)
+    capsys.readouterr()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert "1 speck of its picture with less ink than one opaque pixel (the most opaque 90%) is left out" \
+        in capsys.readouterr().out

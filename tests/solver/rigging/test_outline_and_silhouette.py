@@ -4,10 +4,11 @@ and image silhouettes, and the map that carries a picture's UVs onto its cut-out
 import numpy as np
 import pytest
 import shapely
+from scipy import ndimage
 
 from solver.rigging.handles import apply_affine
 from solver.rigging.outline import boundary_loops, refine_level, sample_bezier, with_area, wound_alike
-from solver.rigging.silhouette import image_cutout, map_by_triangles, stroke_silhouette
+from solver.rigging.silhouette import image_cutout, map_by_triangles, specks, stroke_silhouette
 from solver.shapes import shape_geometry
 
 from sample_shapes import disk
@@ -136,9 +137,12 @@ def test_image_cutout_leaves_out_dust_nobody_sees_and_keeps_a_single_opaque_pixe
     dust = (rng.random((120, 120)) < 0.02) & ~disc             # specks at 5/255: invisible
     image[..., 3][dust] = 0.02
     assert len(shapely.get_parts(shape_geometry(image_cutout(image)))) == 1
+    count, strongest = specks(image)  # what is left out can be told
+    assert count == ndimage.label(dust | disc, structure=np.ones((3, 3), bool))[1] - 1 and strongest == pytest.approx(0.02)
     image[5, 5, 3] = 1.0                                      # one opaque pixel is something
     parts = shapely.get_parts(shape_geometry(image_cutout(image)))
     assert len(parts) == 2 and min(part.area for part in parts) >= 1.0
+    assert specks(image[50:70, 50:70]) == (0, 0.0)
 
 
 def test_map_by_triangles_maps_each_triangle_affinely_as_a_face_shows_its_uvs():
