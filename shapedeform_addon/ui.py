@@ -118,15 +118,33 @@ class SHAPEDEFORM_PT_animation(_RigSubPanel, bpy.types.Panel):
         if not is_baked(obj):
             col.operator("shapedeform.bake", icon="REC")
             return
-        col.label(text="Baked: the keyframes play, the rig waits", icon="KEYFRAME_HLT")
+        frames = bake.baked_frames(obj)
+        baked = f"Baked {_frames(*frames[:2])}" if frames is not None else "Baked"
+        col.label(text=f"{baked}: the keyframes play, the rig waits", icon="KEYFRAME_HLT")
         if bake_source.is_out_of_date(obj):
             col.label(text="Out of date: handles or settings changed since the bake", icon="ERROR")
+        outside = _outside_bake(context.scene, frames)
+        if outside:
+            col.label(text=outside, icon="INFO")
         row = col.row(align=True)
         again = row.operator("shapedeform.bake", text="Bake Again", icon="REC")
-        frames = bake.baked_frames(obj)
         if frames is not None:  # the bake it replaces: a farm's full range, not the preview range on now
             again.frame_start, again.frame_end, again.step = frames
         row.operator("shapedeform.clear_bake", icon="TRASH")
+
+
+def _frames(first, last):
+    return f"frame {first}" if first == last else f"frames {first}-{last}"
+
+
+def _outside_bake(scene, frames):
+    """A line on the frames of ``scene``'s range a bake of ``frames`` (first, last, step) leaves
+    out, which hold its nearest pose (the range grown after baking); "" when none or unknown."""
+    if frames is None:
+        return ""
+    parts = ([_frames(scene.frame_start, frames[0] - 1)] if scene.frame_start < frames[0] else []) + \
+        ([_frames(frames[1] + 1, scene.frame_end)] if scene.frame_end > frames[1] else [])
+    return f"The scene's {' and '.join(parts)} hold the nearest baked pose" if parts else ""
 
 
 def _draw_handles(layout, settings):

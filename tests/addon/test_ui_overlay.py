@@ -101,6 +101,13 @@ def test_panel_offers_bind_then_handles_weights_and_bake_then_bake_again_and_cle
     assert addon.shapedeform_addon.bake.bake_objects([obj], 1, 2) == [obj]
     items = drawn(bpy.context)
     assert "shapedeform.clear_bake" in items and "shapedeform.bake" in items  # Bake Again
+    # The scene's range grown after baking: the frames left out are told (they hold a pose).
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 2
+    labels = drawn(bpy.context, labels=True)
+    assert "Baked frames 1-2: the keyframes play, the rig waits" in labels
+    assert not any("hold the nearest baked pose" in label for label in labels)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 0, 40
+    assert "The scene's frame 0 and frames 3-40 hold the nearest baked pose" in drawn(bpy.context, labels=True)
 
 
 def test_pins_show_their_kind_and_values_and_the_overlay_tints_their_reach(addon):
