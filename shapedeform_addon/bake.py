@@ -30,7 +30,7 @@ of date, as Blender's physics caches flag themselves outdated.
 
 import bpy
 import numpy as np
-from bpy.props import IntProperty
+from bpy.props import BoolProperty, IntProperty
 
 from ..solver.wording import by_count
 from . import bake_source, compat, handlers, rig, rig_format
@@ -211,6 +211,10 @@ class Bake:
     step : int
         Frame step (recorded in the bake's mark).
     scene : bpy.types.Scene, optional
+    own_frames : dict of str to (list of int, int), optional
+        Rigs (their owners' names) baked on frames of their own, and their step: Bake Again of
+        several rigs bakes each over its previous bake's. Every rig is posed on every frame of
+        the bake (a rig's handles may follow another's shape), and keeps its own.
 
     Raises
     ------
@@ -218,7 +222,7 @@ class Bake:
         An object is not bound, has no handles, or is not evaluated in the scene's view layer.
     """
 
-    def __init__(self, objects, frames, step=1, scene=None):
+    def __init__(self, objects, frames, step=1, scene=None, own_frames=None):
         self.scene = scene or bpy.context.scene
         self.objects = []
         for obj in objects:
@@ -247,10 +251,12 @@ class Bake:
                 raise RigError(f"'{obj.name}' is not evaluated in the view layer '{depsgraph.view_layer.name}' "
                                "(disabled in viewports, or excluded there): enable it, or bake from a view "
                                "layer that shows it")
-        self.frames = list(frames)
+        own_frames = own_frames or {}
+        self.frames_of = {obj.name: own_frames.get(obj.name, (list(frames), int(step))) for obj in self.objects}
+        self.frames = sorted({frame for wanted, _ in self.frames_of.values() for frame in wanted})
         if not self.frames:
             raise RigError("Nothing to bake: the frame range is empty")
-        self.step_size = int(step)
+        self.keeps = {name: set(wanted) for name, (wanted, _) in self.frames_of.items()}
         # The live rigs this bake leaves live: the paused handlers do not pose them, so the bake
         # does, on every frame, where a baked rig's handles may follow their shapes.
         self.live = [obj for obj in rig_format.owners(self.scene, depsgraph) if obj not in self.objects
@@ -260,7 +266,7 @@ class Bake:
         # read; for the length of this bake they show what it solves (:func:`_show_live`).
         self.rebaked = [obj for obj in self.objects if rig_format.is_baked(obj)]
         self.captured = {obj.name: [] for obj in self.objects}
-        self.times = []  # the animation time each frame showed
+        self.times = {obj.name: [] for obj in self.objects}  # the animation time each kept frame showed
         self.done = 0
         self.original_frame = (self.scene.frame_current, self.scene.frame_subframe)
 
@@ -287,7 +293,6 @@ class Bake:
     def _pose_frame(self, frame):
         with handlers.paused():
             self.scene.frame_set(frame)
-        self.times.append(self.scene.frame_current_final)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         posed = {}  # not via the handlers
         chain = [obj for obj in self.objects + self.live if self._pose(obj, depsgraph, posed)]
@@ -303,7 +308,9 @@ class Bake:
                 break
             chain = [obj for obj in chain if obj not in moved or self._pose(obj, depsgraph, posed)]
         for obj in self.objects:
-            self.captured[obj.name].append(posed[obj.name])
+            if frame in self.keeps[obj.name]:
+                self.captured[obj.name].append(posed[obj.name])
+                self.times[obj.name].append(self.scene.frame_current_final)
 
     def _pose(self, obj, depsgraph, posed):
         """Pose ``obj``'s rig at this frame, keeping a baked rig's pose in ``posed``; False when
@@ -348,8 +355,9 @@ class Bake:
                 raise RigError(f"'{obj.name}' lost or changed its cage during the bake")
         for obj in self.objects:
             clear(obj)
-            _write_keys(obj.shapedeform.cage, self.frames, self.captured[obj.name], self.times)
-            obj.shapedeform[BAKED] = [self.frames[0], self.frames[-1], self.step_size]
+            frames, step = self.frames_of[obj.name]
+            _write_keys(obj.shapedeform.cage, frames, self.captured[obj.name], self.times[obj.name])
+            obj.shapedeform[BAKED] = [frames[0], frames[-1], step]
             rig_format.store_bake_source(obj.shapedeform.cage, *bake_source.fingerprint(obj))
             bake_source.forget(obj)
         self.captured.clear()
@@ -445,6 +453,9 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
                                                    "range's while that is on)", default=250,
                            soft_min=FIRST_FRAME, soft_max=LAST_FRAME, options={"SKIP_SAVE"})
     step: IntProperty(name="Step", description="Bake every n-th frame", default=1, min=1)
+    again: BoolProperty(name="Again", description="Bake each rig baked before over the frames and step of its "
+                                                  "bake (the others over Start, End and Step)",
+                        default=False, options={"SKIP_SAVE"})
 
     @classmethod
     def poll(cls, context):
@@ -456,9 +467,12 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
             self.frame_start = frame_start
         if not self.properties.is_property_set("frame_end"):
             self.frame_end = frame_end
+        targets = _targets(context)
         try:
-            return Bake(_targets(context), frame_list(self.frame_start, self.frame_end, self.step),
-                        self.step, context.scene)
+            own = {obj.name: (frame_list(*frames), frames[2]) for obj in targets
+                   if self.again and (frames := baked_frames(obj)) is not None}
+            return Bake(targets, frame_list(self.frame_start, self.frame_end, self.step),
+                        self.step, context.scene, own_frames=own)
         except (RigError, ValueError) as err:
             self.report({"ERROR"}, str(err))
             return None

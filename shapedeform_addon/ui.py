@@ -128,6 +128,7 @@ class SHAPEDEFORM_PT_animation(_RigSubPanel, bpy.types.Panel):
             col.label(text=outside, icon="INFO")
         row = col.row(align=True)
         again = row.operator("shapedeform.bake", text="Bake Again", icon="REC")
+        again.again = True  # each selected rig over its own bake's frames
         if frames is not None:  # the bake it replaces: a farm's full range, not the preview range on now
             again.frame_start, again.frame_end, again.step = frames
         row.operator("shapedeform.clear_bake", icon="TRASH")

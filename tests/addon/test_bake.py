@@ -1288,6 +1288,35 @@ def test_bake_again_bakes_the_frames_and_step_of_the_bake_it_replaces(addon):
     assert list(obj.shapedeform["baked"]) == [1, 40, 1]
 
 
+def test_bake_again_of_several_rigs_bakes_each_over_its_own_bake(addon):
+    """Two rigs baked apart (1-12 every 2, and 5-9), both selected, the first active: Bake Again
+    baked both over the active one's frames (the second came back as 1-12 every 2). Each is
+    baked over its own bake's frames and step, and plays what it played; a third rig, never
+    baked, takes the active one's."""
+    bake = addon.shapedeform_addon.bake
+    first, second, third = grid("First"), grid("Second"), grid("Third")
+    for k, obj in enumerate((first, second, third)):
+        obj.location.x = 3.0 * k
+        bpy.context.view_layer.update()
+        rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    bake.bake_objects([first], 1, 12, step=2)
+    bake.bake_objects([second], 5, 9)
+    scene = bpy.context.scene
+    played = {}
+    for frame in range(1, 13):
+        scene.frame_set(frame)
+        played[frame] = checks.evaluated_mesh_points(second).copy()
+    checks.select_only(first)
+    second.select_set(True)
+    third.select_set(True)
+    assert bake_again() == {"FINISHED"}
+    assert [list(o.shapedeform["baked"]) for o in (first, second, third)] == [[1, 12, 2], [5, 9, 1], [1, 12, 2]]
+    assert cage_keys(second)[1:] == [bake.key_name(f) for f in range(5, 10)]
+    for frame in range(1, 13):
+        scene.frame_set(frame)
+        np.testing.assert_allclose(checks.evaluated_mesh_points(second), played[frame], atol=1e-5)
+
+
 def test_whether_a_bake_is_out_of_date_is_worked_out_once_until_what_it_depends_on_changes(addon, monkeypatch):
     """The sidebar asked on every redraw, and each answer read every key of every handle (17.9
     ms for 30 handles keyed on 500 frames). The answer is kept per owner: redrawing works it out
