@@ -300,8 +300,8 @@ def final_quality():
 
 
 def _far_handle(rig, frames):
-    """Which handle, if one, is so far from the shape that a solve overflows: ", its handle 'X'
-    is 1e+30 away" (distance from the shape's rest, in its sizes), else ""."""
+    """Which handle, if one, is so far from the shape that a solve overflows: ": its handle 'X'
+    is 1e+30 shape sizes away" (from the middle of the shape's rest), else ""."""
     if not len(frames):
         return ""
     away = np.abs(frames[:, :2, 2] - rig.graph.points.mean(axis=0)).max(axis=1) / rig.graph.size
@@ -334,7 +334,7 @@ def pose(obj, depsgraph=None, final=None):
         rig_format.follow_library_cage(owner.shapedeform.cage)  # here, never while drawing
     rig = get(obj, depsgraph)
     frames = rig.frames(owner, depsgraph)
-    _finite([np.abs(frame).max() for frame in frames], rig.handle_objects, "transform")
+    _finite(np.abs(frames).max(axis=(1, 2)), rig.handle_objects, "transform")
     settings = owner.shapedeform
     budgets = _animated(owner, depsgraph).shapedeform
     final = final_quality() if final is None else final
