@@ -118,18 +118,19 @@ def _write_keys(cage, frames, captured, times):
     basis = cage.shape_key_add(name="Basis", from_mix=False)
     # The reference key is the rest, as in the relative bakes of earlier versions.
     basis.data.foreach_set("co", rig_format.rest_of(cage).ravel())
-    for frame, points in zip(frames, captured):
-        # Each new key's place in time follows the last one's (Blender's rule), linear between.
-        cage.shape_key_add(name=key_name(frame), from_mix=False).data.foreach_set("co", points.ravel())
     key = cage.data.shape_keys
     key[MARK] = key[IN_TIME] = True
-    key.use_relative = False  # after adding them: an absolute Key puts a new key at its current time
-    places = np.empty(len(key.key_blocks), dtype=np.float32)
-    key.key_blocks.foreach_get("frame", places)
-    # Keyed at each key's place as Blender reports it, the time meets it exactly: no blend of the
-    # next key at a baked frame.
+    key.use_relative = False
+    key_times = rig_format.bake_key_times(len(frames))
+    # An absolute Key puts a new key where its time is (Blender divides the time by 100 for the
+    # key's place as it does when playing, so at that time the key shows alone, exactly), unless
+    # a tenth after the last key is within 0.001 of that place: added from the last, none is.
+    for frame, points, key_time in reversed(list(zip(frames, captured, key_times))):
+        key.eval_time = float(key_time)
+        cage.shape_key_add(name=key_name(frame), from_mix=False).data.foreach_set("co", points.ravel())
+    key.eval_time = float(key_times[0])
     bag = _channelbag(key, "KEY", rig_format.bake_action_name(cage))
-    _add_fcurve(bag, "eval_time", times, places[1:])
+    _add_fcurve(bag, "eval_time", times, key_times)
 
 
 def baked_frames(obj):
@@ -137,6 +138,26 @@ def baked_frames(obj):
     it has none (not baked, or a library override whose library's rig was not baked)."""
     mark = obj.shapedeform.get(BAKED)
     return tuple(int(value) for value in mark) if mark is not None and len(mark) == 3 else None
+
+
+def played_frames(obj, scene):
+    """(first, last) frames of ``scene`` between which the bake ``obj`` plays moves, as its keys
+    are now (retimed too); None when it is not baked, or played through NLA strips (their own
+    timing is not read)."""
+    frames = baked_frames(obj)
+    key = obj.shapedeform.cage.data.shape_keys if frames is not None and obj.shapedeform.cage else None
+    if key is None or not key.get(IN_TIME):  # an earlier version's bake, keyed per frame
+        return frames[:2] if frames is not None else None
+    animation = key.animation_data
+    bag = compat.channelbag(animation.action, animation.action_slot) \
+        if animation is not None and animation.action is not None and not len(animation.nla_tracks) else None
+    curve = bag.fcurves.find("eval_time") if bag is not None else None
+    if curve is None or not len(curve.keyframe_points):
+        return None
+    # Keyed at the animation times the frames showed: Time Stretching maps frames to times.
+    to_frames = scene.render.frame_map_new / scene.render.frame_map_old
+    first, last = curve.keyframe_points[0].co.x, curve.keyframe_points[-1].co.x
+    return int(np.ceil(first * to_frames - 1e-4)), int(np.floor(last * to_frames + 1e-4))
 
 
 def clear(obj):

@@ -500,18 +500,34 @@ def shown_pose(cage):
 
 
 def _pose_in_time(mesh, key):
-    """What absolute shape keys with linear interpolation show at the Key's Evaluation Time: the
-    key at that time, or the blend of the two around it; the first or last key outside them."""
+    """What absolute shape keys with linear interpolation show at the Key's Evaluation Time, as
+    Blender works it out (in float32, on the keys' places, a hundredth of their times): the key
+    at that time, or the blend of the two around it; the first or last key outside them."""
     blocks = key.key_blocks
-    places = np.empty(len(blocks), dtype=np.float32)
-    blocks.foreach_get("frame", places)
-    time = float(np.clip(np.float32(key.eval_time), places[0], places[-1]))
-    after = min(int(np.searchsorted(places, time)), len(places) - 1)  # the first at or after it
+    if key.get(BAKE_IN_TIME):  # a bake's: its keys' times are known exactly
+        times = np.concatenate([[0.0], bake_key_times(len(blocks) - 1)]).astype(np.float32)
+    else:
+        times = np.empty(len(blocks), dtype=np.float32)
+        blocks.foreach_get("frame", times)
+    places = times / np.float32(100.0)
+    place = min(max(np.float32(key.eval_time) / np.float32(100.0), places[0]), places[-1])
+    after = int(np.searchsorted(places, place))  # the first key at or after it
     shown = _points(mesh, blocks[after].data, "co").astype(np.float64)
-    if places[after] == time or after == 0:
+    if places[after] == place or after == 0:
         return shown
-    share = (time - places[after - 1]) / (places[after] - places[after - 1])
+    share = float((place - places[after - 1]) / (places[after] - places[after - 1]))
     return share * shown + (1.0 - share) * _points(mesh, blocks[after - 1].data, "co")
+
+
+def bake_key_times(count):
+    """Evaluation Times (count,) float32 of the keys of a bake of ``count`` frames, after its
+    reference key at 0: 10 apart (Blender's own spacing of absolute keys), closer for a bake
+    too long for the times Blender allows (over 104,856 frames), at least 0.5 apart (a key's
+    place, a hundredth of its time, is then well over Blender's 0.001 from the next, and
+    Blender's 2,097,149 frames fit)."""
+    top = bpy.types.Key.bl_rna.properties["eval_time"].hard_max
+    spacing = max(min(10.0, top / (count + 1)), 0.5)
+    return (spacing * np.arange(1, count + 1)).astype(np.float32)
 
 
 # A rig numbers its islands from a first number of its own (:func:`island_numbers`), so that a

@@ -123,7 +123,7 @@ class SHAPEDEFORM_PT_animation(_RigSubPanel, bpy.types.Panel):
         col.label(text=f"{baked}: the keyframes play, the rig waits", icon="KEYFRAME_HLT")
         if bake_source.is_out_of_date(obj):
             col.label(text="Out of date: handles or settings changed since the bake", icon="ERROR")
-        outside = _outside_bake(context.scene, frames)
+        outside = _outside_bake(context.scene, bake.played_frames(obj, context.scene))
         if outside:
             col.label(text=outside, icon="INFO")
         row = col.row(align=True)
@@ -139,12 +139,14 @@ def _frames(first, last):
 
 
 def _outside_bake(scene, frames):
-    """A line on the frames of ``scene``'s range a bake of ``frames`` (first, last, step) leaves
-    out, which hold its nearest pose (the range grown after baking); "" when none or unknown."""
+    """A line on the frames of ``scene``'s range outside ``frames`` (first, last), where a bake
+    plays, which hold its nearest pose (the range grown after baking, the bake retimed); "" when
+    none or unknown."""
     if frames is None:
         return ""
-    parts = ([_frames(scene.frame_start, frames[0] - 1)] if scene.frame_start < frames[0] else []) + \
-        ([_frames(frames[1] + 1, scene.frame_end)] if scene.frame_end > frames[1] else [])
+    start, end = scene.frame_start, scene.frame_end
+    parts = ([_frames(start, min(frames[0] - 1, end))] if start < frames[0] else []) + \
+        ([_frames(max(frames[1] + 1, start), end)] if end > frames[1] else [])
     return f"The scene's {' and '.join(parts)} hold the nearest baked pose" if parts else ""
 
 

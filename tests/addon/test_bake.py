@@ -87,8 +87,8 @@ def test_mesh_bake_plays_without_the_extension_and_rebake_replaces(addon):
     bag = anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot)
     # One curve plays the keys in turn (an F-curve per key made each frame change search them all).
     assert [curve.data_path for curve in bag.fcurves] == ["eval_time"]
-    blocks = obj.shapedeform.cage.data.shape_keys.key_blocks
-    assert [tuple(k.co) for k in bag.fcurves[0].keyframe_points] == [(f, blocks[i + 1].frame) for i, f in enumerate(FRAMES)]
+    times = addon.shapedeform_addon.rig_format.bake_key_times(len(FRAMES))
+    assert [tuple(k.co) for k in bag.fcurves[0].keyframe_points] == list(zip(FRAMES, times))
     assert len(bpy.data.actions) == 2  # the handle's and the bake's
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
 
@@ -749,6 +749,33 @@ def test_between_and_outside_baked_frames_the_pose_blends_and_holds_as_drawn(add
         played = checks.evaluated_mesh_points(cage)
         np.testing.assert_allclose(played, expected, atol=1e-5, err_msg=f"frame {frame + subframe}")
         np.testing.assert_allclose(shown(), played, atol=1e-5, err_msg=f"frame {frame + subframe}")
+
+
+def test_every_frame_of_a_long_bake_plays_its_own_pose_alone(addon):
+    """Keys of a bake placed where Blender placed them (a tenth apart, added one after the
+    other) drifted from the times keyed for them: at 2,000 frames a baked frame blended in 1.5e-4
+    of the next frame's pose (1.2e-3 at 20,000). Each key now sits exactly at the time it is
+    keyed at: every baked frame shows its pose alone, and the pose read as shown is it."""
+    shapedeform = addon.shapedeform_addon
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    cage = obj.shapedeform.cage
+    rest = shapedeform.rig_format.rest_of(cage)
+    frames = list(range(1, 3001))
+    poses = rest[None] + np.random.default_rng(7).normal(size=(len(frames), *rest.shape)).astype(np.float32)
+    shapedeform.bake._write_keys(cage, frames, list(poses), frames)
+    scene = bpy.context.scene
+    for frame in (1, 2, 1499, 2048, 2999, 3000):
+        scene.frame_set(frame)
+        np.testing.assert_array_equal(checks.evaluated_mesh_points(cage), poses[frame - 1], err_msg=f"frame {frame}")
+        np.testing.assert_allclose(shapedeform.rig_format.shown_pose(cage), poses[frame - 1], atol=1e-6)
+    # Between frames the blend is linear, within what float32 holds of a key's place: near 205,
+    # to 1.5e-5, a share of 1.5e-4 of the 0.1 between two keys.
+    scene.frame_set(2047, subframe=0.25)
+    step = np.abs(poses[2047] - poses[2046]).max()
+    np.testing.assert_allclose(checks.evaluated_mesh_points(cage), 0.75 * poses[2046] + 0.25 * poses[2047],
+                               atol=3e-4 * step)
+    np.testing.assert_allclose(shapedeform.rig_format.shown_pose(cage), checks.evaluated_mesh_points(cage), atol=1e-5)
 
 
 def test_an_earlier_versions_bake_plays_is_drawn_and_is_replaced(addon):
