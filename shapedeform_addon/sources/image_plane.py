@@ -301,15 +301,17 @@ def _alpha_as_rendered(node, alpha):
 
 def _alpha_reader(node):
     """How the material reads image ``node``'s alpha: "" straight into a shader's Alpha (through
-    reroutes; or a Mix Shader's factor over a Transparent BSDF), None when nothing reads it, else
-    the name of a node on the way that may change it."""
+    reroutes; or a Mix Shader's factor over a Transparent BSDF), None when nothing that reaches
+    the material's output reads it (unwired, muted, or into a shader left out), else the name of
+    a node on the way that may change it."""
+    shown = _feeding_output(node.id_data)
     changed = None
     for link in node.outputs["Alpha"].links:
-        while link.to_node.type == "REROUTE" and link.to_node.outputs[0].links:
+        while not link.is_muted and link.to_node.type == "REROUTE" and link.to_node.outputs[0].links:
             link = link.to_node.outputs[0].links[0]
         to, socket = link.to_node, link.to_socket
-        if to.type == "REROUTE":
-            continue  # leads nowhere
+        if link.is_muted or to not in shown:
+            continue  # nothing renders what it reads
         if socket.name == "Alpha" and any(output.type == "SHADER" for output in to.outputs):
             return ""
         first = to.inputs[1].links if to.type == "MIX_SHADER" and socket == to.inputs[0] else ()
@@ -317,6 +319,19 @@ def _alpha_reader(node):
             return ""
         changed = changed or to.name
     return changed
+
+
+def _feeding_output(tree):
+    """The nodes of material node ``tree`` whose outputs reach its active Material Output's
+    Surface, through links that are not muted (a node group counts whole)."""
+    output = next((n for n in tree.nodes if n.type == "OUTPUT_MATERIAL" and n.is_active_output), None)
+    found, todo = set(), list(output.inputs["Surface"].links) if output is not None else []
+    while todo:
+        link = todo.pop()
+        if not link.is_muted and link.from_node not in found:
+            found.add(link.from_node)
+            todo.extend(upstream for socket in link.from_node.inputs for upstream in socket.links)
+    return found
 
 
 def _reading_notes(obj, node, changed):
