@@ -190,13 +190,13 @@ def prepare(obj, settings):
     height, width = alpha.shape
     if width * height < 2:
         raise RigError(f"'{obj.name}': its image '{node.image.name}' is a single pixel: too small to cut a shape from")
-    alpha, alpha_notes = _alpha_as_rendered(node, alpha)
     corners = mesh_source.positions(quad).astype(np.float64)
     loop_vertices = np.empty(len(quad.loops), dtype=np.int32)
     quad.loops.foreach_get("vertex_index", loop_vertices)
     picture_layer, changed = _picture_uv_layer(quad, node)
-    notes = [advice, *alpha_notes, *_reading_notes(obj, node, changed)]
     uv = _loop_uvs(picture_layer)
+    alpha, alpha_notes = _alpha_as_rendered(node, alpha, window=uv * (width, height))
+    notes = [advice, *alpha_notes, *_reading_notes(obj, node, changed)]
     try:
         plane = fit_plane(corners)
     except ValueError as err:
@@ -277,8 +277,9 @@ def _new_cutout(quad, vertices, triangles, uv_maps, active_uv, render_uv, materi
     return cutout
 
 
-def _alpha_as_rendered(node, alpha):
-    """``alpha`` (H, W) as the plane's material shows it, and what Bind says about it ([str]).
+def _alpha_as_rendered(node, alpha, window):
+    """``alpha`` (H, W) as the plane's material shows it, and what Bind says about it ([str]);
+    ``window`` (k, 2) is the part of the picture the plane shows, in pixels.
 
     Nothing reading the picture's alpha, the plane renders whole: so is it rigged (all ones; the
     cut-out cut it to the picture's alpha, and the render lost the rest of the plane). A node
@@ -291,7 +292,7 @@ def _alpha_as_rendered(node, alpha):
                                      "cut the plane to the picture)"]
     notes = [f"'{reader}' changes its picture's alpha on the way to the shader: what is cut out may not be "
              "what renders"] if reader else []
-    count, strongest = specks(alpha)
+    count, strongest = specks(alpha, window=window)
     if count:
         notes.append(f"{count} {'speck' if count == 1 else 'specks'} of its picture with less ink than one "
                      f"opaque pixel (the most opaque {strongest:.0%}) {'is' if count == 1 else 'are'} left out "

@@ -161,7 +161,7 @@ def _specks_mask(alpha, level):
     return np.concatenate([[False], ink < 1.0])[labels]
 
 
-def specks(image, level=1.0 / 255.0):
+def specks(image, level=1.0 / 255.0, window=None):
     """What :func:`image_cutout` leaves out: each group of visible pixels (at or above ``level``,
     touching by a side or a corner) holding less ink than one opaque pixel.
 
@@ -171,6 +171,9 @@ def specks(image, level=1.0 / 255.0):
         As :func:`image_cutout` takes it.
     level : float
         Alpha at or above which a pixel is visible.
+    window : (k, 2) array_like, optional
+        A polygon in pixel units, as :func:`image_cutout` takes it: only groups with a pixel in
+        its bounding box count.
 
     Returns
     -------
@@ -181,9 +184,16 @@ def specks(image, level=1.0 / 255.0):
     """
     alpha = coverage(image)
     faint = _specks_mask(alpha, level)
-    if not faint.any():
+    if window is not None:
+        box = np.asarray(window, dtype=np.float64)
+        (x0, y0), (x1, y1) = np.floor(box.min(axis=0)).astype(int), np.ceil(box.max(axis=0)).astype(int)
+        inside = np.zeros_like(faint)
+        inside[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = True
+    labels, _ = ndimage.label(faint, structure=np.ones((3, 3), dtype=bool))
+    shown = np.unique(labels[faint & inside]) if window is not None else np.unique(labels[faint])
+    if not len(shown):
         return 0, 0.0
-    return int(ndimage.label(faint, structure=np.ones((3, 3), dtype=bool))[1]), float(alpha[faint].max())
+    return len(shown), float(alpha[np.isin(labels, shown)].max())
 
 
 def map_by_triangles(source, target, triangles, points):

@@ -139,6 +139,10 @@ def test_image_cutout_leaves_out_dust_nobody_sees_and_keeps_a_single_opaque_pixe
     assert len(shapely.get_parts(shape_geometry(image_cutout(image)))) == 1
     count, strongest = specks(image)  # what is left out can be told
     assert count == ndimage.label(dust | disc, structure=np.ones((3, 3), bool))[1] - 1 and strongest == pytest.approx(0.02)
+    # Only the part a window shows: a quarter of the picture holds about a quarter of the specks.
+    quarter = specks(image, window=[[0, 0], [60, 0], [60, 60], [0, 60]])[0]
+    groups = ndimage.label(dust | disc, structure=np.ones((3, 3), bool))[0]
+    assert 0 < quarter < count and quarter == len(set(groups[:60, :60][dust[:60, :60]]) - {groups[60, 60]})
     image[5, 5, 3] = 1.0                                      # one opaque pixel is something
     parts = shapely.get_parts(shape_geometry(image_cutout(image)))
     assert len(parts) == 2 and min(part.area for part in parts) >= 1.0
