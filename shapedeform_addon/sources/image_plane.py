@@ -340,7 +340,10 @@ def _reading_notes(obj, node, changed):
     (its name) changes the picture's coordinates, or other pictures with alpha are wired in."""
     notes = [f"'{changed}' changes the coordinates its picture is read through: what is cut out may not be "
              "what renders"] if changed else []
-    others = [other.image.name for other in _pictures(obj)[1:] if other.outputs["Alpha"].is_linked]
+    # Another node showing the same picture (Blender 5's importer adds one to a material it
+    # reuses) is cut out alike.
+    others = list(dict.fromkeys(other.image.name for other in _pictures(obj)[1:]
+                                if other.outputs["Alpha"].is_linked and other.image != node.image))
     if others:
         notes.append(f"only the picture '{node.image.name}' is cut out, not " + ", ".join(map(repr, others)))
     return notes

@@ -853,3 +853,19 @@ def test_bind_says_how_many_specks_of_the_picture_it_leaves_out(addon, tmp_path,
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert "1 speck of its picture with less ink than one opaque pixel (the most opaque 90%) is left out" \
         in capsys.readouterr().out
+
+
+def test_a_second_node_of_the_same_picture_is_not_told_as_another_picture(addon, tmp_path, capsys):
+    """Importing a picture again, Blender 5's importer reuses its material and adds a second
+    Image Texture node of the same picture: Bind said "only the picture 'picture.png' is cut
+    out, not 'picture.png'" (and the demo printed it)."""
+    obj, _ = import_picture(tmp_path)
+    tree = obj.active_material.node_tree
+    image = next(n for n in tree.nodes if n.type == "TEX_IMAGE")
+    for _ in range(2):
+        again = tree.nodes.new("ShaderNodeTexImage")
+        again.image = image.image
+        tree.links.new(again.outputs["Alpha"], tree.nodes.new("ShaderNodeMath").inputs[0])
+    capsys.readouterr()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert "is cut out, not" not in capsys.readouterr().out
