@@ -149,16 +149,18 @@ def _without_dust(alpha, level):
     """``alpha`` (H, W) with its specks (:func:`specks`) made transparent: nobody sees them (a
     soft brush's or a scan's), and each would otherwise be an island of the cut-out, and of the
     graph."""
-    faint = _specks_mask(alpha, level)
+    faint = _specks(alpha, level)[1]
     return np.where(faint, 0.0, alpha) if faint.any() else alpha
 
 
-def _specks_mask(alpha, level):
+def _specks(alpha, level):
+    """The groups of visible pixels of ``alpha`` (H, W): their labels (H, W) int, and the mask
+    (H, W) of those that are specks."""
     labels, count = ndimage.label(alpha >= level, structure=np.ones((3, 3), dtype=bool))
     if count == 0:
-        return np.zeros(alpha.shape, dtype=bool)
+        return labels, np.zeros(alpha.shape, dtype=bool)
     ink = ndimage.sum_labels(alpha, labels, index=np.arange(1, count + 1))
-    return np.concatenate([[False], ink < 1.0])[labels]
+    return labels, np.concatenate([[False], ink < 1.0])[labels]
 
 
 def specks(image, level=1.0 / 255.0, window=None):
@@ -183,14 +185,13 @@ def specks(image, level=1.0 / 255.0, window=None):
         The highest alpha among their pixels (0.0 when there are none).
     """
     alpha = coverage(image)
-    faint = _specks_mask(alpha, level)
+    labels, faint = _specks(alpha, level)
+    region = (slice(None), slice(None))
     if window is not None:
         box = np.asarray(window, dtype=np.float64)
         (x0, y0), (x1, y1) = np.floor(box.min(axis=0)).astype(int), np.ceil(box.max(axis=0)).astype(int)
-        inside = np.zeros_like(faint)
-        inside[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)] = True
-    labels, _ = ndimage.label(faint, structure=np.ones((3, 3), dtype=bool))
-    shown = np.unique(labels[faint & inside]) if window is not None else np.unique(labels[faint])
+        region = (slice(max(y0, 0), max(y1, 0)), slice(max(x0, 0), max(x1, 0)))
+    shown = np.unique(labels[region][faint[region]])
     if not len(shown):
         return 0, 0.0
     return len(shown), float(alpha[np.isin(labels, shown)].max())
