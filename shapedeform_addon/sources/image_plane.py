@@ -186,17 +186,11 @@ def prepare(obj, settings):
     """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
     quad = obj.data
     node = _image_node(obj)
-    alpha, advice = _alpha(obj, node)
-    height, width = alpha.shape
-    if width * height < 2:
-        raise RigError(f"'{obj.name}': its image '{node.image.name}' is a single pixel: too small to cut a shape from")
     corners = mesh_source.positions(quad).astype(np.float64)
     loop_vertices = np.empty(len(quad.loops), dtype=np.int32)
     quad.loops.foreach_get("vertex_index", loop_vertices)
     picture_layer, changed = _picture_uv_layer(quad, node)
     uv = _loop_uvs(picture_layer)
-    alpha, alpha_notes = _alpha_as_rendered(node, alpha, window=uv * (width, height))
-    notes = [advice, *alpha_notes, *_reading_notes(obj, node, changed)]
     try:
         plane = fit_plane(corners)
     except ValueError as err:
@@ -205,20 +199,19 @@ def prepare(obj, settings):
     # UVs are interpolated over the triangles Blender splits the face into, each affinely: map
     # through the same triangles, so a quad that is no parallelogram shows the same texels.
     loop_triangles = _loop_triangles(quad)
-
-    def to_plane(uv_points):
-        return map_by_triangles(uv, loop_points, loop_triangles, uv_points)
-
+    reader = _alpha_reader(node)
+    if reader is None:
+        # Nothing reads the alpha: the plane renders whole, so is it rigged (its pixels unread:
+        # a 4,096-pixel square took 2.3 s to read and trace into its own frame).
+        rings = [loop_points]
+        notes = [f"nothing reads the alpha of its picture '{node.image.name}', so the whole plane is rigged, as "
+                 "it renders (wire the picture's Alpha to the shader's to cut the plane to the picture)"]
+    else:
+        rings, notes = _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triangles)
+        notes.extend(_reading_notes(obj, node, changed))
+        if not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
+            notes.append("its UVs show the picture more than once: only the copy in the UV square is cut out")
     try:
-        to_plane(uv)  # refuses a picture map that covers no area
-    except ValueError:
-        raise RigError(f"'{obj.name}': its UV map '{picture_layer.name}', which shows its picture, shows none of "
-                       "it (its corners' UVs lie on one line): unwrap the plane again") from None
-    try:
-        # Only what the plane shows: its UVs may frame part of the picture (a sprite sheet's).
-        margin = _FILTER_MARGIN.get(node.interpolation, max(_FILTER_MARGIN.values()))
-        rings = [to_plane(ring / (width, height))
-                 for ring in image_cutout(alpha, margin=margin, window=uv * (width, height))]
         graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
@@ -247,9 +240,34 @@ def prepare(obj, settings):
     if quad.shape_keys is not None and len(quad.shape_keys.key_blocks) > 1:
         notes.append("its shape keys stop showing while it is bound (the cut-out has none; Unbind gives the quad "
                      "back with them)")
-    if not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
-        notes.append("its UVs show the picture more than once: only the copy in the UV square is cut out")
     return Prepared(plane, graph, commit, advice="; ".join(filter(None, notes)))
+
+
+def _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triangles):
+    """The rings (in the plane) of what the picture's alpha shows of ``node``'s picture through
+    the quad's UVs (``uv`` at its loops ``loop_points``, (4, 2) each), and what Bind says about
+    them ([str]); ``reader`` is :func:`_alpha_reader`'s answer."""
+    alpha, advice = _alpha(obj, node)
+    height, width = alpha.shape
+    if width * height < 2:
+        raise RigError(f"'{obj.name}': its image '{node.image.name}' is a single pixel: too small to cut a shape from")
+    window = uv * (width, height)
+    notes = [advice, *_cutout_notes(node, reader, alpha, window)]
+
+    def to_plane(uv_points):
+        return map_by_triangles(uv, loop_points, loop_triangles, uv_points)
+
+    try:
+        to_plane(uv)  # refuses a picture map that covers no area
+    except ValueError:
+        raise RigError(f"'{obj.name}': its UV map '{picture_layer.name}', which shows its picture, shows none of "
+                       "it (its corners' UVs lie on one line): unwrap the plane again") from None
+    # Only what the plane shows: its UVs may frame part of the picture (a sprite sheet's).
+    margin = _FILTER_MARGIN.get(node.interpolation, max(_FILTER_MARGIN.values()))
+    try:
+        return [to_plane(ring / (width, height)) for ring in image_cutout(alpha, margin=margin, window=window)], notes
+    except ValueError as err:
+        raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
 
 
 def _loop_triangles(quad):
@@ -277,19 +295,11 @@ def _new_cutout(quad, vertices, triangles, uv_maps, active_uv, render_uv, materi
     return cutout
 
 
-def _alpha_as_rendered(node, alpha, window):
-    """``alpha`` (H, W) as the plane's material shows it, and what Bind says about it ([str]);
-    ``window`` (k, 2) is the part of the picture the plane shows, in pixels.
-
-    Nothing reading the picture's alpha, the plane renders whole: so is it rigged (all ones; the
-    cut-out cut it to the picture's alpha, and the render lost the rest of the plane). A node
-    on the way to the shader (an Invert, a Math node) may show other pixels than the alpha
-    says: the cut-out is the alpha's, and Bind says so. Specks the cut-out leaves out are told."""
-    reader = _alpha_reader(node)
-    if reader is None:
-        return np.ones_like(alpha), [f"nothing reads the alpha of its picture '{node.image.name}', so the whole "
-                                     "plane is rigged, as it renders (wire the picture's Alpha to the shader's to "
-                                     "cut the plane to the picture)"]
+def _cutout_notes(node, reader, alpha, window):
+    """What Bind says about cutting ``node``'s picture to its ``alpha`` (H, W) ([str]);
+    ``window`` (k, 2) is the part of the picture the plane shows, in pixels. A node ``reader``
+    (its name) on the way to the shader (an Invert, a Math node) may show other pixels than the
+    alpha says; specks the cut-out leaves out are told."""
     notes = [f"'{reader}' changes its picture's alpha on the way to the shader: what is cut out may not be "
              "what renders"] if reader else []
     count, strongest = specks(alpha, window=window)
@@ -297,7 +307,7 @@ def _alpha_as_rendered(node, alpha, window):
         notes.append(f"{count} {'speck' if count == 1 else 'specks'} of its picture with less ink than one "
                      f"opaque pixel (the most opaque {strongest:.0%}) {'is' if count == 1 else 'are'} left out "
                      "of the cut-out")
-    return alpha, notes
+    return notes
 
 
 def _alpha_reader(node):
