@@ -74,9 +74,9 @@ BAKE_SOURCE_NUMBERS = "shapedeform_baked_from_numbers"  # ... and its numbers, c
 # On the owner's settings: the name of the attribute marking the grease-pencil layers its rig
 # deforms ("" for all of them); the modifier is given the same name.
 RIGGED_KEY = "rigged_attribute"
-# ... and the names of those layers, one per line, as of when it had RIGGED_COUNT layers in all
-# (``sources.grease_pencil.keep_marks`` puts the marks back on them after Ctrl+J).
-RIGGED_NAMES, RIGGED_COUNT = "rigged_layers", "rigged_layer_count"
+# ... and the names of those layers, one per line, as of when it had RIGGED_COUNT layers in all,
+# named RIGGED_ALL (``sources.grease_pencil.keep_marks`` puts the marks back on them after Ctrl+J).
+RIGGED_NAMES, RIGGED_COUNT, RIGGED_ALL = "rigged_layers", "rigged_layer_count", "all_layers"
 CUTOUT_KEY = "cutout_points"  # on an image plane's settings: the cut-out's vertices as bind made them
 CUTOUT_ATTRIBUTES = "cutout_attributes"  # ... and its attributes (UV maps with a digest of their UVs)
 QUAD_STAMP = "shapedeform_cutout"  # on an image plane's rest quad: the cut-outs it is kept for
@@ -133,7 +133,7 @@ def read_graph(obj):
 
 def clear(settings):
     """Drop everything this module keeps on an owner's ``settings`` as ID properties (unbind)."""
-    kept = (BAKED, RIGGED_KEY, RIGGED_NAMES, RIGGED_COUNT, CUTOUT_KEY, CUTOUT_ATTRIBUTES)
+    kept = (BAKED, RIGGED_KEY, RIGGED_NAMES, RIGGED_COUNT, RIGGED_ALL, CUTOUT_KEY, CUTOUT_ATTRIBUTES)
     for key in GRAPH_KEYS + kept + LEGACY_KEYS:
         settings.pop(key, None)
 

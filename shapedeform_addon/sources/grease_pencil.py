@@ -24,7 +24,8 @@ from .. import compat, rig_format
 from ..errors import RigError
 from .prepared import Prepared
 from ..nodes import ORDER_INPUT, RIGGED
-from ..rig_format import LEGACY_GP_FRAMES, LEGACY_GP_LAYERS, RIGGED_COUNT, RIGGED_KEY, RIGGED_NAMES, modifiers_of
+from ..rig_format import (LEGACY_GP_FRAMES, LEGACY_GP_LAYERS, RIGGED_ALL, RIGGED_COUNT, RIGGED_KEY, RIGGED_NAMES,
+                          modifiers_of)
 from .mesh import REST_ATTRIBUTE, read_vectors
 
 # Strokes thinner than this fraction of the drawing's size are swept this wide, so a hairline
@@ -239,9 +240,12 @@ def keep_marks(obj):
     Ctrl+J of another grease pencil into this one merges layer attributes out of order (Blender
     4.5 by their place in the list, not their name; 5.0-5.2 put the joined layers' values
     first), which moved the marks onto joined layers, and brings the joined rig's marks, its
-    rig gone with it. The marked layers' names are kept on the object: while the number of
-    layers stays, they follow the marks (a layer renamed or moved); when it changes, the marks
-    are set again from them (a layer added, deleted or joined in)."""
+    rig gone with it. The marked layers' names, and all the layers', are kept on the object:
+    while the number of layers stays, they follow the marks (a layer renamed or moved); when it
+    changes, the marks are set again from them (a layer added, deleted or joined in), but for a
+    layer of a new name that Blender's marks, in step with the names elsewhere, keep marked: a
+    marked layer renamed in the same go (a script, or the extension off), as many of them as
+    marked names are gone (it lost its mark, and the layer stopped deforming)."""
     data = obj.data
     if data.library is not None or obj.library is not None:
         return
@@ -255,18 +259,33 @@ def keep_marks(obj):
     attribute.data.foreach_get("value", marks)
     settings = obj.shapedeform
     if settings.get(RIGGED_COUNT, len(layers)) != len(layers):
-        named = set(settings.get(RIGGED_NAMES, "").split("\n"))
-        marks = np.array([layer in named for layer in layers], dtype=bool)
+        marks = _marks_by_name(settings, layers, marks)
         attribute.data.foreach_set("value", marks)
         data.update_tag()
     _remember_marks(obj, layers, marks)
 
 
+def _marks_by_name(settings, layers, marks):
+    """The marks (l,) of ``layers`` (their names) from the names kept on ``settings``, where
+    Blender's ``marks`` (l,) are to be trusted only for layers of new names (see
+    :func:`keep_marks`)."""
+    named = set(settings.get(RIGGED_NAMES, "").split("\n")) - {""}
+    by_name = np.array([layer in named for layer in layers], dtype=bool)
+    if RIGGED_ALL in settings:  # (an older version kept the marked names alone)
+        known = np.isin(layers, settings[RIGGED_ALL].split("\n"))
+        renamed = np.flatnonzero(marks & ~known)
+        if np.array_equal(marks[known], by_name[known]) and len(renamed) <= len(named - set(layers)):
+            by_name[renamed] = True
+    return by_name
+
+
 def _remember_marks(obj, layers, marks):
-    """Keep the names of the marked ones of ``layers`` (their names, in order) on ``obj``."""
-    names = "\n".join(layer for layer, marked in zip(layers, marks) if marked)
-    if obj.shapedeform.get(RIGGED_NAMES) != names or obj.shapedeform.get(RIGGED_COUNT) != len(marks):
-        obj.shapedeform[RIGGED_NAMES], obj.shapedeform[RIGGED_COUNT] = names, len(marks)
+    """Keep the names of the marked ones of ``layers`` (their names, in order), and of all, on
+    ``obj``."""
+    settings = obj.shapedeform
+    names, everyone = "\n".join(layer for layer, marked in zip(layers, marks) if marked), "\n".join(layers)
+    if settings.get(RIGGED_NAMES) != names or settings.get(RIGGED_ALL) != everyone:
+        settings[RIGGED_NAMES], settings[RIGGED_COUNT], settings[RIGGED_ALL] = names, len(marks), everyone
 
 
 def _forget_stray_marks(obj):

@@ -76,6 +76,34 @@ def test_chosen_layers_only(addon):
         bpy.ops.shapedeform.bind()
 
 
+@pytest.mark.parametrize("then", ["add", "delete"])
+def test_a_chosen_layer_renamed_as_a_layer_comes_or_goes_stays_rigged(addon, quiet, then):
+    """A chosen layer renamed while another is added or deleted, with no update between (one
+    script, or the extension off): the marks were set again from the chosen layers' names, none
+    of which was left, and the layer stopped deforming for good (QA: 0.5 of pose to 0)."""
+    bpy.ops.object.grease_pencil_add(type="MONKEY")
+    obj = bpy.context.active_object
+    obj.shapedeform.layers = "Lines"
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    lines = checks.drawing_points(obj.data.layers["Lines"].current_frame().drawing).copy()
+    checks.add_handle(obj, checks.world(obj, lines[np.argmin(lines[:, 2])]))
+    handle = checks.add_handle(obj, checks.world(obj, lines[np.argmax(lines[:, 2])]))
+    handle.location.x += 0.3
+    bpy.context.view_layer.update()
+    posed = checks.evaluated_drawing_points(obj, "Lines").copy()
+    assert np.abs(posed - lines).max() > 0.2
+    obj.data.layers["Lines"].name = "Outline"
+    if then == "add":
+        obj.data.layers.new("Sketch")
+    else:
+        obj.data.layers.remove(obj.data.layers["Fills"])
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(checks.evaluated_drawing_points(obj, "Outline"), posed, atol=1e-6)
+    if then == "add":
+        assert checks.evaluated_drawing_points(obj, "Fills").tobytes() == \
+            checks.drawing_points(obj.data.layers["Fills"].current_frame().drawing).tobytes()
+
+
 def test_strokes_inside_a_fill_move_with_it(addon):
     """The monkey's skin is drawn with a fill material on strokes that are not closed: Blender
     fills them, so the shape is the filled face, and its mouth and eyes move with it (only the
