@@ -158,6 +158,11 @@ class SHAPEDEFORM_PG_object(bpy.types.PropertyGroup):
                                default=0.04, min=0.001, max=0.5, subtype='FACTOR', options=NOT_KEYABLE)
     layers: StringProperty(name="Layers", description="Grease pencil layers to rig, comma separated (empty: all)",
                             options=NOT_KEYABLE)
+    layers_apart: BoolProperty(name="Layers Apart",
+                               description="Grease pencil: each rigged layer is a part of its own, which moves apart "
+                                           "from the others where they overlap (an arm on its own layer over the "
+                                           "body); off, strokes that overlap join, whatever their layers",
+                               default=False, options=NOT_KEYABLE)
     show_overlay: BoolProperty(name="Show Graph", description="Draw the graph and handle regions in the viewport",
                                default=False, options=NOT_KEYABLE)
     status: StringProperty(name="Status", description="Why the last update failed (empty when it worked)",

@@ -33,7 +33,8 @@ The cage, a mesh object parented to the owner (or, on a curve whose Path Animati
     copying its transform: :func:`follows_by_constraint`) and hidden:
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
     space when it was bound), its point attribute ``sd_rest`` the rest (and ``nodes.ISLAND``
-    each point's island number (:func:`island_numbers`), where the owner's vertices have theirs), ``shapedeform.rig``
+    each point's island number (:func:`island_numbers`), where the owner's vertices have theirs,
+    or from 1 where its grease pencil's layers have theirs: Layers Apart), ``shapedeform.rig``
     the owner. A bake is shape keys on its mesh, its Key and action marked ``shapedeform_bake``
     (:mod:`.bake`; a copy of the mesh for a rig of its own has an action of its own:
     :func:`copy_cage_mesh`), the Key's ``shapedeform_baked_from`` a digest of what the bake was
@@ -77,6 +78,9 @@ RIGGED_KEY = "rigged_attribute"
 # ... and the names of those layers, one per line, as of when it had RIGGED_COUNT layers in all,
 # named RIGGED_ALL (``sources.grease_pencil.keep_marks`` puts the marks back on them after Ctrl+J).
 RIGGED_NAMES, RIGGED_COUNT, RIGGED_ALL = "rigged_layers", "rigged_layer_count", "all_layers"
+# ... and with Layers Apart each of those layers' island, as the layer attribute ``nodes.ISLAND``
+# (a byte) had it.
+LAYER_ISLANDS = "layer_islands"
 CUTOUT_KEY = "cutout_points"  # on an image plane's settings: the cut-out's vertices as bind made them
 CUTOUT_ATTRIBUTES = "cutout_attributes"  # ... and its attributes (UV maps with a digest of their UVs)
 QUAD_STAMP = "shapedeform_cutout"  # on an image plane's rest quad: the cut-outs it is kept for
@@ -133,7 +137,7 @@ def read_graph(obj):
 
 def clear(settings):
     """Drop everything this module keeps on an owner's ``settings`` as ID properties (unbind)."""
-    kept = (BAKED, RIGGED_KEY, RIGGED_NAMES, RIGGED_COUNT, RIGGED_ALL, CUTOUT_KEY, CUTOUT_ATTRIBUTES)
+    kept = (BAKED, RIGGED_KEY, RIGGED_NAMES, RIGGED_COUNT, RIGGED_ALL, LAYER_ISLANDS, CUTOUT_KEY, CUTOUT_ATTRIBUTES)
     for key in GRAPH_KEYS + kept + LEGACY_KEYS:
         settings.pop(key, None)
 
@@ -587,17 +591,17 @@ def renumber_islands(cage_mesh, meshes=()):
         mine = (islands >= first) & (islands < first + ISLANDS_PER_RIG)
         islands[mine] += shift
         data.attributes[nodes.ISLAND].data.foreach_set("value", islands)
-        data.update()
+        data.update_tag()
 
 
 def islands_of(mesh):
     """Each point's island number, (n,) int32, that ``mesh`` keeps (:data:`nodes.ISLAND`, see
     :func:`island_numbers`: on a cage's points, or a mesh's vertices; 0 where not known), or
-    None where it keeps none."""
+    None where it keeps none; for grease pencil data, each layer's."""
     attribute = mesh.attributes.get(nodes.ISLAND)
-    if attribute is None or attribute.domain != "POINT" or attribute.data_type != "INT":
+    if attribute is None or attribute.domain not in ("POINT", "LAYER") or attribute.data_type not in ("INT", "INT8"):
         return None
-    islands = np.empty(len(mesh.vertices), dtype=np.int32)
+    islands = np.empty(len(attribute.data), dtype=np.int32)
     attribute.data.foreach_get("value", islands)
     return islands
 

@@ -49,6 +49,7 @@ class SHAPEDEFORM_PT_panel(bpy.types.Panel):
             col.prop(settings, "density")
             if obj.type == "GREASEPENCIL":
                 col.prop(settings, "layers")
+                col.prop(settings, "layers_apart")
             col.operator("shapedeform.bind", icon="MOD_MESHDEFORM")
             return
         layout.operator("shapedeform.unbind", icon="X")

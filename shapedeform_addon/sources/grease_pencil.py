@@ -16,21 +16,23 @@ rest in each drawing's ``sd_rest`` attribute and the drawings' (layer, frame) on
 
 import numpy as np
 
-from ...solver.outline import outline_graph
+from ...solver.outline import outline_graph, parts_graph
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from ...solver.wording import by_count
 from .. import compat, rig_format
 from ..errors import RigError
 from .prepared import Prepared
-from ..nodes import ORDER_INPUT, RIGGED
-from ..rig_format import (LEGACY_GP_FRAMES, LEGACY_GP_LAYERS, RIGGED_ALL, RIGGED_COUNT, RIGGED_KEY, RIGGED_NAMES,
-                          modifiers_of)
-from .mesh import REST_ATTRIBUTE, read_vectors
+from ..nodes import ISLAND, ORDER_INPUT, RIGGED
+from ..rig_format import (LAYER_ISLANDS, LEGACY_GP_FRAMES, LEGACY_GP_LAYERS, RIGGED_ALL, RIGGED_COUNT, RIGGED_KEY,
+                          RIGGED_NAMES, modifiers_of)
+from .mesh import REST_ATTRIBUTE, forget_islands, mark_islands, read_vectors
 
 # Strokes thinner than this fraction of the drawing's size are swept this wide, so a hairline
 # drawing still has an area to deform.
 MIN_RADIUS_FRACTION = 0.005
+# The most layers Layers Apart rigs: their islands are numbered from 1 in a byte (see prepare).
+MAX_PARTS = 127
 
 
 def _chosen_layers(obj, settings):
@@ -127,34 +129,35 @@ def prepare(obj, settings):
     # A holdout fill cuts a hole; a stroke past the last slot is drawn unfilled: the extra
     # False at the end stands for it.
     fills = np.array([compat.fills_strokes(slot.material) for slot in obj.material_slots] + [False])
-    rests, offsets, radii, filled, start = [], [np.zeros(1, np.int64)], [], [], 0
-    for _, frame in frames:
-        drawing = frame.drawing
-        points = _points(drawing)
-        curve_offsets = _stroke_offsets(drawing)
-        strokes = len(curve_offsets) - 1
-        rests.append(points)
-        offsets.append(curve_offsets[1:] + start)
-        radii.append(_values(drawing, "radius", len(points), np.float32, 0.0))
-        # Blender fills a stroke whether or not it is closed (see compat.filled_strokes).
-        material = np.clip(_values(drawing, "material_index", strokes, np.int32, 0), 0, len(fills) - 1)
-        fill_id = _values(drawing, "fill_id", strokes, np.int32, 0)
-        closed = _values(drawing, "cyclic", strokes, bool, False)
-        filled.append(closed | compat.filled_strokes(fills, material, fill_id))
-        start += len(points)
-    rest = np.concatenate(rests)
+    strokes = [_strokes(frame.drawing, fills) for _, frame in frames]
+    rest = np.concatenate([points for points, *_ in strokes])
     if len(rest) == 0:
         raise RigError(f"'{obj.name}' has no stroke points on the current frame")
+    apart = settings.layers_apart and len(strokes) > 1
+    if apart and len(strokes) > MAX_PARTS:
+        raise RigError(f"'{obj.name}': Layers Apart rigs up to {MAX_PARTS} layers with strokes, and it has "
+                       f"{len(strokes)}: choose fewer in Layers, or turn Layers Apart off")
     try:
         # Straight strokes lie in many planes: the one Blender draws in by default, local XZ.
         plane = fit_plane(rest, line_normal=(0.0, 1.0, 0.0))
-        flat = plane.to_2d(rest)
-        size = float(np.linalg.norm(np.ptp(flat, axis=0)))
-        rings = stroke_silhouette(flat, np.concatenate(offsets), np.concatenate(radii), np.concatenate(filled),
-                                  min_radius=MIN_RADIUS_FRACTION * size)
-        graph = outline_graph(rings, settings.density)
+        size = float(np.linalg.norm(np.ptp(plane.to_2d(rest), axis=0)))
+
+        def silhouette(drawings):
+            points, offsets, radii, filled = (np.concatenate(values) for values in zip(*_numbered_from(drawings)))
+            return stroke_silhouette(plane.to_2d(points), offsets, radii, filled, min_radius=MIN_RADIUS_FRACTION * size)
+
+        if apart:  # each layer a part of its own, which overlaps others without joining them
+            graph, part = parts_graph([silhouette([drawing]) for drawing in strokes], settings.density)
+        else:
+            graph = outline_graph(silhouette(strokes), settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
+    # Each layer's island, from 1 (0: a layer not rigged, or with nothing drawn on this frame).
+    # Numbers of the rig's own, not the file's (as a mesh's): the layers keep them in a byte
+    # (Blender 5.0-5.2 crash when a grease pencil whose layers have a wider attribute is joined
+    # into another, at the next file load), and a join gets them back by name (keep_marks).
+    islands = (part + 1).astype(np.int32) if apart else None
+    layer_islands = {layer.name: k + 1 for k, (layer, _) in enumerate(frames)} if apart else {}
 
     # Every layer named, also one with nothing drawn yet on this frame.
     chosen = {layer.name for layer in _chosen_layers(obj, settings)} if settings.layers.strip() else None
@@ -168,14 +171,45 @@ def prepare(obj, settings):
                 name = f"{RIGGED}.{number:03d}"
             marks = np.array([layer.name in chosen for layer in o.data.layers], dtype=bool)
             o.data.attributes.new(name, "BOOLEAN", "LAYER").data.foreach_set("value", marks)
-            _remember_marks(o, [layer.name for layer in o.data.layers], marks)
+            _remember_layers(o, [layer.name for layer in o.data.layers], marks)
         o.shapedeform[RIGGED_KEY] = name
+        if layer_islands:
+            islands = np.array([layer_islands.get(layer.name, 0) for layer in o.data.layers], np.int32)
+            mark_islands(o, islands, "LAYER", "INT8")
+            _remember_layers(o, [layer.name for layer in o.data.layers], islands=islands)
 
     # Stroke Order is on wherever it costs the drawing nothing.
     rigged = [layer for layer, _ in frames]
     advice = "; ".join(filter(None, (_transformed_layers_advice(obj, rigged),
                                        _hidden_layers_advice(rigged, settings))))
-    return Prepared(plane, graph, commit, advice=advice, modifier_inputs={ORDER_INPUT: not stroke_order_losses(obj)})
+    return Prepared(plane, graph, commit, advice=advice, modifier_inputs={ORDER_INPUT: not stroke_order_losses(obj)},
+                    islands=islands)
+
+
+def _strokes(drawing, fills):
+    """A drawing's strokes as the silhouette reads them: points (p, 3), each stroke's end
+    (s,), radii (p,) and whether it is filled (s,); ``fills`` (m + 1,) tells which material
+    slots fill (the last stands for a stroke past the last slot)."""
+    points = _points(drawing)
+    offsets = _stroke_offsets(drawing)
+    strokes = len(offsets) - 1
+    radii = _values(drawing, "radius", len(points), np.float32, 0.0)
+    # Blender fills a stroke whether or not it is closed (see compat.filled_strokes).
+    material = np.clip(_values(drawing, "material_index", strokes, np.int32, 0), 0, len(fills) - 1)
+    fill_id = _values(drawing, "fill_id", strokes, np.int32, 0)
+    closed = _values(drawing, "cyclic", strokes, bool, False)
+    return points, offsets[1:], radii, closed | compat.filled_strokes(fills, material, fill_id)
+
+
+def _numbered_from(strokes):
+    """:func:`_strokes` of several drawings, the stroke ends of each counted on from the last
+    point of the ones before, with a leading 0 on the first: what joins them into one."""
+    start, numbered = 0, []
+    for k, (points, ends, radii, filled) in enumerate(strokes):
+        numbered.append((points, np.concatenate([[0], ends + start]) if k == 0 else ends + start, radii, filled))
+        start += len(points)
+    return numbered
+
 
 
 def _hidden_layers_advice(layers, settings):
@@ -220,11 +254,13 @@ def unbind(obj):
     """Give back what binding changed; what could not be, as phrases (see :mod:`.sources`).
 
     The attribute marking the rigged layers goes unless another rig of this data names it too
-    (a linked duplicate, following the rig or given a rig of its own with its handles)."""
+    (a linked duplicate, following the rig or given a rig of its own with its handles); so do
+    the layers' islands."""
     name = _rigged_attribute(obj)
     attribute = obj.data.attributes.get(name) if name else None
     if attribute is not None and name not in map(_rigged_attribute, rig_format.other_rigged_users(obj)):
         obj.data.attributes.remove(attribute)
+    forget_islands(obj)
     return []
 
 
@@ -234,58 +270,89 @@ def _rigged_attribute(obj):
 
 
 def keep_marks(obj):
-    """Keep the marks of bound ``obj``'s rigged layers on the layers they marked when layers come
-    or go, and drop the marks no rig of its data reads.
+    """Keep what bound ``obj``'s rig keeps on its layers, the marks of its rigged layers and,
+    with Layers Apart, their islands, on the layers they were on when layers come or go; drop
+    the marks no rig of its data reads.
 
     Ctrl+J of another grease pencil into this one merges layer attributes out of order (Blender
     4.5 by their place in the list, not their name; 5.0-5.2 put the joined layers' values
     first), which moved the marks onto joined layers, and brings the joined rig's marks, its
-    rig gone with it. The marked layers' names, and all the layers', are kept on the object:
-    while the number of layers stays, they follow the marks (a layer renamed or moved); when it
-    changes, the marks are set again from them (a layer added, deleted or joined in), but for a
-    layer of a new name that Blender's marks, in step with the names elsewhere, keep marked: a
-    marked layer renamed in the same go (a script, or the extension off), as many of them as
-    marked names are gone (it lost its mark, and the layer stopped deforming)."""
+    rig gone with it. The layers' names and values are kept on the object: while the number of
+    layers stays, they follow Blender's values (a layer renamed or moved); when it changes, the
+    values are set again by name (a layer added, deleted or joined in), but for a layer of a
+    new name that Blender's values, in step with the names elsewhere, give a value: a layer
+    renamed in the same go (a script, or the extension off), as many of them as names are gone
+    (a marked layer lost its mark, and stopped deforming)."""
     data = obj.data
     if data.library is not None or obj.library is not None:
         return
     _forget_stray_marks(obj)
-    name = obj.shapedeform.get(RIGGED_KEY) if obj.shapedeform.is_bound else None
-    attribute = data.attributes.get(name) if name else None
-    if attribute is None or attribute.domain != "LAYER" or attribute.data_type != "BOOLEAN":
+    if not obj.shapedeform.is_bound:
+        return
+    settings = obj.shapedeform
+    kept = {key: attribute for key, attribute in ((RIGGED_NAMES, _layer_attribute(data, settings.get(RIGGED_KEY), "BOOLEAN")),
+                                                  (LAYER_ISLANDS, _layer_attribute(data, ISLAND, "INT8")))
+            if attribute is not None}
+    if not kept:
         return
     layers = [layer.name for layer in data.layers]
-    marks = np.zeros(len(layers), dtype=bool)
-    attribute.data.foreach_get("value", marks)
-    settings = obj.shapedeform
+    values = {key: _layer_values(attribute, len(layers)) for key, attribute in kept.items()}
     if settings.get(RIGGED_COUNT, len(layers)) != len(layers):
-        marks = _marks_by_name(settings, layers, marks)
-        attribute.data.foreach_set("value", marks)
+        for key, attribute in kept.items():
+            values[key] = _by_name(layers, values[key], _kept_values(settings, key))
+            attribute.data.foreach_set("value", values[key])
         data.update_tag()
-    _remember_marks(obj, layers, marks)
+    _remember_layers(obj, layers, values.get(RIGGED_NAMES), values.get(LAYER_ISLANDS))
 
 
-def _marks_by_name(settings, layers, marks):
-    """The marks (l,) of ``layers`` (their names) from the names kept on ``settings``, where
-    Blender's ``marks`` (l,) are to be trusted only for layers of new names (see
-    :func:`keep_marks`)."""
+def _layer_attribute(data, name, data_type):
+    """``data``'s LAYER attribute ``name`` of ``data_type``, or None."""
+    attribute = data.attributes.get(name) if name else None
+    return attribute if attribute is not None and attribute.domain == "LAYER" and attribute.data_type == data_type \
+        else None
+
+
+def _layer_values(attribute, count):
+    values = np.zeros(count, dtype=bool if attribute.data_type == "BOOLEAN" else np.int32)
+    attribute.data.foreach_get("value", values)
+    return values
+
+
+def _kept_values(settings, key):
+    """{layer name: value} of the marks (``key`` RIGGED_NAMES) or islands (LAYER_ISLANDS) kept on
+    ``settings`` as of the last update (an older version kept the marked names alone)."""
+    names = settings[RIGGED_ALL].split("\n") if RIGGED_ALL in settings else None
+    if key == LAYER_ISLANDS:
+        return dict(zip(names, settings[LAYER_ISLANDS])) if names is not None and key in settings else {}
     named = set(settings.get(RIGGED_NAMES, "").split("\n")) - {""}
-    by_name = np.array([layer in named for layer in layers], dtype=bool)
-    if RIGGED_ALL in settings:  # (an older version kept the marked names alone)
-        known = np.isin(layers, settings[RIGGED_ALL].split("\n"))
-        renamed = np.flatnonzero(marks & ~known)
-        if np.array_equal(marks[known], by_name[known]) and len(renamed) <= len(named - set(layers)):
-            by_name[renamed] = True
+    return {name: name in named for name in names} if names is not None else dict.fromkeys(named, True)
+
+
+def _by_name(layers, values, kept):
+    """The values (l,) of ``layers`` (their names) by name from ``kept`` ({name: value}), where
+    Blender's ``values`` (l,) are trusted only for layers of new names (see :func:`keep_marks`)."""
+    known = np.isin(layers, list(kept))
+    by_name = np.array([kept.get(layer, 0) for layer in layers], dtype=values.dtype)
+    renamed = np.flatnonzero((values != 0) & ~known)
+    gone = sum(1 for name, value in kept.items() if value and name not in layers)
+    if np.array_equal(values[known], by_name[known]) and len(renamed) <= gone:
+        by_name[renamed] = values[renamed]
     return by_name
 
 
-def _remember_marks(obj, layers, marks):
-    """Keep the names of the marked ones of ``layers`` (their names, in order), and of all, on
-    ``obj``."""
+def _remember_layers(obj, layers, marks=None, islands=None):
+    """Keep the names of ``layers`` (in order), of those ``marks`` (l,) marks, and ``islands``
+    (l,), on ``obj``."""
     settings = obj.shapedeform
-    names, everyone = "\n".join(layer for layer, marked in zip(layers, marks) if marked), "\n".join(layers)
-    if settings.get(RIGGED_NAMES) != names or settings.get(RIGGED_ALL) != everyone:
-        settings[RIGGED_NAMES], settings[RIGGED_COUNT], settings[RIGGED_ALL] = names, len(marks), everyone
+    everyone = "\n".join(layers)
+    if marks is not None:
+        names = "\n".join(layer for layer, marked in zip(layers, marks) if marked)
+        if settings.get(RIGGED_NAMES) != names:
+            settings[RIGGED_NAMES] = names
+    if islands is not None and list(settings.get(LAYER_ISLANDS, ())) != islands.tolist():
+        settings[LAYER_ISLANDS] = islands.tolist()
+    if settings.get(RIGGED_ALL) != everyone:
+        settings[RIGGED_COUNT], settings[RIGGED_ALL] = len(layers), everyone
 
 
 def _forget_stray_marks(obj):
@@ -329,11 +396,28 @@ def selected(obj):
     """Layer-space rest positions (k, 3) of selected stroke points of the current drawings,
     of what Edit Mode edits: strokes on shown, unlocked layers (in shown, unlocked groups),
     drawn with shown materials that are unlocked (or on layers that ignore locked materials)."""
+    chosen = [points for _, points in _selected_by_layer(obj)]
+    return np.concatenate(chosen).astype(np.float64) if chosen else np.empty((0, 3))
+
+
+def selected_islands(obj):
+    """Each selected point's island number (k,) int32, its layer's, in :func:`selected`'s order
+    (0: not known, a layer added since binding), or None where the layers keep none (a rig
+    without Layers Apart)."""
+    islands = rig_format.islands_of(obj.data)
+    if islands is None:
+        return None
+    chosen = [np.full(len(points), islands[index], np.int32) for index, points in _selected_by_layer(obj)]
+    return np.concatenate(chosen) if chosen else np.empty(0, np.int32)
+
+
+def _selected_by_layer(obj):
+    """:func:`selected`'s points, layer by layer: [(the layer's index, (k, 3) float32)]."""
     slots = obj.material_slots
     hidden = np.array([_material_flag(slot, "hide") for slot in slots] + [False])
     locked = np.array([_material_flag(slot, "lock") for slot in slots] + [False])
     chosen = []
-    for layer in obj.data.layers:
+    for index, layer in enumerate(obj.data.layers):
         frame = layer.current_frame()
         if not _editable(layer) or frame is None or frame.drawing is None:
             continue
@@ -343,8 +427,8 @@ def selected(obj):
         strokes = len(offsets) - 1
         material = np.clip(_values(drawing, "material_index", strokes, np.int32, 0), 0, len(hidden) - 1)
         frozen = hidden[material] | (locked[material] & (not layer.ignore_locked_materials))
-        chosen.append(points[_selection(drawing, len(points), offsets) & ~np.repeat(frozen, np.diff(offsets))])
-    return np.concatenate(chosen).astype(np.float64) if chosen else np.empty((0, 3))
+        chosen.append((index, points[_selection(drawing, len(points), offsets) & ~np.repeat(frozen, np.diff(offsets))]))
+    return chosen
 
 
 def _editable(layer):

@@ -158,7 +158,7 @@ def prepare(obj, settings):
     islands = _islands(graph, obj.data) if mode == "OWN" else None
     if islands is None:
         return Prepared(plane, graph, advice=advice)
-    return Prepared(plane, graph, lambda o: _mark_islands(o, islands[vertex_point]), advice=advice, islands=islands)
+    return Prepared(plane, graph, lambda o: mark_islands(o, islands[vertex_point]), advice=advice, islands=islands)
 
 
 def _outline_graph(flat, tris, loops, density):
@@ -185,13 +185,14 @@ def _islands(graph, data):
     return rig_format.island_numbers(pieces, data) if pieces.max() > 0 else None
 
 
-def _mark_islands(obj, vertex_islands):
-    """Write each vertex's island number into the mesh as :data:`ISLAND` (another rig of this
-    data may have written it: it is made anew)."""
+def mark_islands(obj, islands, domain="POINT", data_type="INT"):
+    """Write each vertex's (or a grease pencil's layer's, ``domain`` "LAYER") island number
+    (k,) into ``obj``'s data as :data:`ISLAND` (another rig of this data may have written it:
+    it is made anew)."""
     attributes = obj.data.attributes
     if attributes.get(ISLAND) is not None:
         attributes.remove(attributes[ISLAND])
-    attributes.new(ISLAND, "INT", "POINT").data.foreach_set("value", vertex_islands)
+    attributes.new(ISLAND, data_type, domain).data.foreach_set("value", np.asarray(islands, dtype=np.int32))
 
 
 def _faces_overlap(flat, tris):

@@ -234,3 +234,180 @@ def test_a_drawing_far_from_its_origin_stays_put_at_bind(addon):
     step = float(np.spacing(np.float32(far)))
     assert np.abs(checks.evaluated_drawing_points(obj) - rest).max() <= 4 * step
 
+
+
+def body_and_arm(per_side=12, arm_first=False):
+    """A grease pencil figure drawn in XZ: a filled body on layer "Body" and a filled arm on
+    layer "Arm" above it (below, ``arm_first``), the arm's root drawn over the body."""
+    data = getattr(bpy.data, "grease_pencils_v3", bpy.data.grease_pencils).new("Figure")
+    obj = bpy.data.objects.new("Figure", data)
+    bpy.context.scene.collection.objects.link(obj)
+    material = bpy.data.materials.new("Fill")
+    bpy.data.materials.create_gpencil_data(material)
+    if bpy.app.version < (5, 1):  # 5.1 fills the strokes that have a fill_id
+        material.grease_pencil.show_fill = True
+    data.materials.append(material)
+    outlines = {"Body": [(-1.2, -1.0), (0.2, -1.0), (0.2, 1.0), (-1.2, 1.0)],
+                "Arm": [(-0.6, 0.5), (1.6, 0.5), (1.6, 0.9), (-0.6, 0.9)]}
+    for name, corners in sorted(outlines.items(), reverse=arm_first):
+        drawing = data.layers.new(name).frames.new(bpy.context.scene.frame_current).drawing
+        ring = np.array(corners + corners[:1], float)
+        points = [a + (b - a) * t for a, b in zip(ring[:-1], ring[1:])
+                  for t in np.linspace(0.0, 1.0, per_side, endpoint=False)]
+        drawing.add_strokes([len(points)])
+        drawing.attributes["position"].data.foreach_set(
+            "vector", np.array([(x, 0.0, z) for x, z in points], np.float32).ravel())
+        for attribute, kind, value in (("cyclic", "BOOLEAN", True), ("fill_id", "INT", 1)):
+            (drawing.attributes.get(attribute) or drawing.attributes.new(attribute, kind, "CURVE")).data[0].value = value
+        radius = drawing.attributes.get("radius") or drawing.attributes.new("radius", "FLOAT", "POINT")
+        radius.data.foreach_set("value", np.full(len(points), 0.01, np.float32))
+    bpy.context.view_layer.objects.active = obj
+    return obj
+
+
+def layer_points(obj, name, evaluated=True):
+    if evaluated:
+        return checks.evaluated_drawing_points(obj, name).astype(np.float64)
+    return checks.drawing_points(obj.data.layers[name].current_frame().drawing).astype(np.float64)
+
+
+@pytest.mark.parametrize("apart", [True, False])
+def test_layers_apart_keep_an_arm_drawn_over_the_body_apart_from_it(addon, tmp_path, apart, quiet):
+    """Strokes that overlap at rest join: an arm drawn on its own layer over the body dragged
+    the body with it. With Layers Apart each layer is a part of its own (its island, on the
+    layers, read by the modifier): the arm swings over a body that stays put, through a save and
+    reload; Unbind takes the layers' islands away."""
+    obj = body_and_arm()
+    obj.shapedeform.layers_apart = apart
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    body, arm = layer_points(obj, "Body", False), layer_points(obj, "Arm", False)
+    for corner in ((-1.15, -0.95), (0.15, -0.95), (-1.15, 0.95)):  # the body's, away from the arm
+        checks.add_handle(obj, checks.world(obj, (corner[0], 0.0, corner[1])))
+    checks.add_handle(obj, checks.world(obj, (0.6, 0.0, 0.7)))  # the arm's, off the body
+    tip = checks.add_handle(obj, checks.world(obj, (1.55, 0.0, 0.7)))
+    tip.location.z += 0.5
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    assert np.abs(layer_points(obj, "Arm") - arm).max() > 0.3
+    body_moved = np.abs(layer_points(obj, "Body") - body).max()
+    if not apart:
+        assert np.abs(layer_points(obj, "Body") - body)[:, [0, 2]].max() > 0.01  # joined, the body bends with the arm
+        assert ".sd_island" not in obj.data.attributes
+        return
+    assert body_moved < 1e-4
+    islands = np.empty(2, np.int32)
+    obj.data.attributes[".sd_island"].data.foreach_get("value", islands)
+    assert obj.data.attributes[".sd_island"].domain == "LAYER" and sorted(islands) == [1, 2]
+
+    posed = {name: layer_points(obj, name) for name in ("Body", "Arm")}
+    path = str(tmp_path / "figure.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["Figure"]
+    for name, points in posed.items():
+        np.testing.assert_allclose(layer_points(obj, name), points, atol=1e-6)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert ".sd_island" not in obj.data.attributes
+    np.testing.assert_array_equal(layer_points(obj, "Body"), body)
+
+
+@pytest.mark.parametrize("arm_first", [False, True])
+def test_a_handle_at_selected_arm_points_over_the_body_holds_the_arm_alone(addon, quiet, arm_first):
+    """With Layers Apart, points selected on the arm where it lies over the body give handles
+    that hold the arm (their layer's part), not the body under them."""
+    obj = body_and_arm(arm_first=arm_first)
+    obj.shapedeform.layers_apart = True
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    body = layer_points(obj, "Body", False)
+    for layer in obj.data.layers:
+        drawing = layer.current_frame().drawing
+        points = checks.drawing_points(drawing)
+        selection = drawing.attributes.get(".selection") or drawing.attributes.new(".selection", "BOOLEAN", "POINT")
+        # The arm's root, over the body.
+        selection.data.foreach_set("value", (layer.name == "Arm") & (points[:, 0] < -0.55))
+    islands = np.empty(2, np.int32)
+    obj.data.attributes[".sd_island"].data.foreach_get("value", islands)
+    arm_island = islands[[layer.name for layer in obj.data.layers].index("Arm")]
+    selected = addon.shapedeform_addon.sources.selected_islands(obj)
+    assert len(selected) > 2 and np.all(selected == arm_island)
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.shapedeform.add_handle() == {"FINISHED"}
+    bpy.ops.object.mode_set(mode="OBJECT")
+    checks.add_handle(obj, checks.world(obj, (-1.15, 0.0, -0.95)))  # the body's
+    root = obj.shapedeform.handles[0].object
+    root.location.z -= 0.3
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    assert np.abs(layer_points(obj, "Arm") - layer_points(obj, "Arm", False)).max() > 0.25
+    assert np.abs(layer_points(obj, "Body") - body).max() < 1e-4
+
+
+def test_a_copy_with_its_handles_keeps_its_layers_apart(addon, quiet):
+    """Shift+D of a figure rigged with Layers Apart, with its handles: the copy's rig reads its
+    own layers' islands, and its arm swings over a body that stays put, the original's pose
+    untouched."""
+    obj = body_and_arm()
+    obj.shapedeform.layers_apart = True
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, (-1.15, 0.0, -0.95)))
+    checks.add_handle(obj, checks.world(obj, (0.6, 0.0, 0.7)))
+    checks.add_handle(obj, checks.world(obj, (1.55, 0.0, 0.7)))
+    posed = {name: layer_points(obj, name) for name in ("Body", "Arm")}
+    checks.select_only(obj)
+    for item in obj.shapedeform.handles:
+        item.object.select_set(True)
+    assert bpy.ops.object.duplicate() == {"FINISHED"}
+    copy = bpy.context.active_object
+    bpy.context.view_layer.update()
+    assert copy.data != obj.data and copy.shapedeform.cage != obj.shapedeform.cage
+
+    def islands(data):
+        values = np.empty(len(data.attributes[".sd_island"].data), np.int32)
+        data.attributes[".sd_island"].data.foreach_get("value", values)
+        return values
+
+    assert set(islands(copy.data)) == set(islands(copy.shapedeform.cage.data)) == {1, 2}
+    body = layer_points(copy, "Body", False)
+    copy.shapedeform.handles[2].object.location.z += 0.5
+    bpy.context.view_layer.update()
+    assert copy.shapedeform.status == ""
+    assert np.abs(layer_points(copy, "Arm") - layer_points(copy, "Arm", False)).max() > 0.3
+    assert np.abs(layer_points(copy, "Body") - body).max() < 1e-4
+    for name, points in posed.items():
+        np.testing.assert_allclose(layer_points(obj, name), points, atol=1e-6)
+
+
+@pytest.mark.parametrize("joined", ["a stroke", "a figure with layers apart"])
+def test_a_drawing_joined_into_a_figure_with_layers_apart_keeps_its_parts(addon, quiet, joined):
+    """Ctrl+J of another grease pencil into a figure rigged with Layers Apart: Join merges the
+    layers' attributes out of order (see keep_marks), and the figure's layers must keep their
+    own islands: the arm still swings over a body that stays put."""
+    obj = body_and_arm()
+    obj.shapedeform.layers_apart = True
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    for corner in ((-1.15, -0.95), (0.15, -0.95)):
+        checks.add_handle(obj, checks.world(obj, (corner[0], 0.0, corner[1])))
+    checks.add_handle(obj, checks.world(obj, (0.6, 0.0, 0.7)))
+    tip = checks.add_handle(obj, checks.world(obj, (1.55, 0.0, 0.7)))
+    if joined == "a stroke":
+        bpy.ops.object.grease_pencil_add(type="STROKE", location=(3.0, 0.0, 0.0))
+        other = bpy.context.active_object
+    else:
+        other = body_and_arm()
+        other.location.x = 3.0
+        other.shapedeform.layers_apart = True
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+        checks.add_handle(other, checks.world(other, (-1.15, 0.0, -0.95)))
+        checks.add_handle(other, checks.world(other, (1.55, 0.0, 0.7))).location.z -= 0.3
+        bpy.context.view_layer.update()
+    checks.select_only(obj)
+    other.select_set(True)
+    assert bpy.ops.object.join() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    body = layer_points(obj, "Body", False)
+    tip.location.z += 0.5
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    assert np.abs(layer_points(obj, "Arm") - layer_points(obj, "Arm", False)).max() > 0.3
+    assert np.abs(layer_points(obj, "Body") - body).max() < 1e-4

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from solver.outline import outline_graph, simplify_rings, spacing_for_count
+from solver import Deformer
+from solver.outline import outline_graph, parts_graph, simplify_rings, spacing_for_count
 
 from sample_shapes import disk
 
@@ -38,3 +39,26 @@ def test_a_needle_hole_thinner_than_the_detail_kept_is_left_out(seed):
     assert graph.n < 600 and len(graph.boundary_loops) == 1
     sliver = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1e-4], [0.0, 1e-4]])
     assert len(simplify_rings([sliver], 0.01)) == 1
+
+
+def test_parts_that_overlap_stay_apart():
+    """Two parts drawn over each other (an arm across a body) make one graph of two islands at
+    one spacing, about ``count`` interior points in all: dragging the arm's end moves the arm
+    alone, and the body, without handles, stays at rest."""
+    body = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0], [0.0, 2.0]])
+    arm = np.array([[0.2, 1.0], [2.5, 1.0], [2.5, 1.4], [0.2, 1.4]])
+    graph, part = parts_graph([[body], [arm]], 300)
+    assert graph.components().max() == 1 and np.array_equal(np.unique(part), [0, 1])
+    assert np.all(part[graph.edges[:, 0]] == part[graph.edges[:, 1]])
+    assert 200 < len(graph.interior) < 450
+    assert graph.area() == pytest.approx(2.0 + 2.3 * 0.4, rel=1e-9)
+    lengths = np.linalg.norm(np.diff(graph.points[graph.edges], axis=1)[:, 0], axis=1)
+    assert lengths.max() < 2.5 * graph.spacing
+    tip = np.flatnonzero((part == 1) & (graph.points[:, 0] > 2.45))
+    root = np.flatnonzero((part == 1) & (graph.points[:, 0] < 0.25))
+    handles = np.concatenate([root, tip])
+    targets = graph.points[handles].copy()
+    targets[len(root):] += [-0.5, 1.0]
+    positions = Deformer(graph, handles).solve(targets).positions
+    np.testing.assert_array_equal(positions[part == 0], graph.points[part == 0])
+    assert np.abs(positions[part == 1] - graph.points[part == 1]).max() > 0.5
