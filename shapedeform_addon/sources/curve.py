@@ -133,8 +133,12 @@ def prepare_splines(obj, curve, settings):
             radius = max(curve.bevel_depth, SWEEP_FRACTION * size)
             offsets = np.concatenate([[0], np.cumsum([len(s) for s in strokes])])
             rings = stroke_silhouette(np.concatenate(strokes), offsets, np.full(offsets[-1], radius), areas=areas)
+        elif not areas:
+            splines = by_count(len(rings), "spline encloses", "splines enclose")
+            raise RigError(f"'{obj.name}' cannot be rigged: its closed {splines} no area (the points of each lie on "
+                           "one line, or at fewer than three places)")
         else:
-            rings = areas or rings
+            rings = areas
         graph = outline_graph(rings, settings.density)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None

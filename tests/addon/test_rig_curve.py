@@ -94,10 +94,13 @@ def test_open_splines_alone_are_swept_into_a_silhouette(addon):
     assert all(a.tobytes() == b.tobytes() for a, b in zip(curve_points(obj), rest))
 
 
-def test_curve_with_no_area_is_refused(addon):
+@pytest.mark.parametrize("count", [2, 3])
+def test_curve_with_no_area_is_refused(addon, count):
+    """A closed spline whose points lie on one line, or of two points: refused in the user's
+    words (it said "ring 0 has zero area", "ring 0 has fewer than 3 distinct points")."""
     curve = bpy.data.curves.new("Line", "CURVE")
     spline = curve.splines.new("POLY")
-    spline.points.add(2)
+    spline.points.add(count - 1)
     for i, point in enumerate(spline.points):
         point.co = (i, 0.5 * i, 0, 1)
     spline.use_cyclic_u = True
@@ -105,8 +108,9 @@ def test_curve_with_no_area_is_refused(addon):
     bpy.context.scene.collection.objects.link(obj)
     bpy.context.view_layer.objects.active = obj
     before = checks.snapshot()
-    with pytest.raises(RuntimeError, match="zero area"):
+    with pytest.raises(RuntimeError, match="its closed spline encloses no area") as refused:
         bpy.ops.shapedeform.bind()
+    assert "ring" not in str(refused.value)
     assert checks.snapshot() == before and "sd_rest" not in curve
 
 
