@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ... import solver
-from ...solver.outline import outline_graph
+from ...solver.outline import outline_graph, parts_graph
 from ...solver.shapes import geometry_rings
 from ...solver.triangulate import triangle_cross
 from ...solver.wording import by_count
@@ -133,11 +133,16 @@ def prepare(obj, settings):
     on_faces[tris.ravel()] = True
     mode = settings.graph_mode
     well_shaped = smallest_angles(flat, tris).min() >= OWN_GRAPH_MIN_ANGLE
+    # Islands that overlap one another (a low-poly puppet's arm quad over its body quad) get an
+    # outline graph each, kept apart; where the mesh is its own graph a part had its corners
+    # alone, too few points for a second handle.
+    parts = _overlapping_islands(flat, tris) if pinched is None and mode != "OWN" else None
     if mode == "AUTO":
         own = len(flat) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped and pinched is None
         if own and 2 * sum(len(loop) for loop in loops) >= len(flat):  # mostly outline
-            own = _faces_overlap(flat, tris)
+            own = parts is None and _faces_overlap(flat, tris)
         mode = "OWN" if own else "OUTLINE"
+    point_part = None
     try:
         if mode == "OWN":
             if pinched is not None:
@@ -147,6 +152,11 @@ def prepare(obj, settings):
                 raise ValueError(f"{loose} {by_count(loose, 'vertex is', 'vertices are')} on no face; use the "
                                  "Outline graph")
             graph = solver.Graph(flat, mesh_edges, loops, tris)
+        elif parts is not None:
+            point_part = np.zeros(len(flat), dtype=np.int64)  # a loose vertex follows the first part's map
+            point_part[tris] = parts[:, None]
+            graph, part = parts_graph([[flat[loop] for loop in boundary_loops(tris[parts == k])]
+                                       for k in range(parts.max() + 1)], settings.density)
         else:
             graph = _outline_graph(flat, tris, loops, settings.density)
     except ValueError as err:
@@ -155,10 +165,30 @@ def prepare(obj, settings):
     if not well_shaped:
         advice = ("its long thin faces can fold where it bends hard: raise Refine on its Shape Deform "
                   "modifier to subdivide them")
-    islands = _islands(graph, obj.data) if mode == "OWN" else None
+    if point_part is not None:
+        numbers = rig_format.island_numbers(np.arange(parts.max() + 1), obj.data)
+        islands, vertex_islands = numbers[part], numbers[point_part[vertex_point]]
+    else:
+        islands = _islands(graph, obj.data) if mode == "OWN" else None
+        vertex_islands = None if islands is None else islands[vertex_point]
     if islands is None:
         return Prepared(plane, graph, advice=advice)
-    return Prepared(plane, graph, lambda o: mark_islands(o, islands[vertex_point]), advice=advice, islands=islands)
+    return Prepared(plane, graph, lambda o: mark_islands(o, vertex_islands), advice=advice, islands=islands)
+
+
+def _overlapping_islands(flat, tris):
+    """Each triangle's island (t,) where the faces (t, 3) over points (n, 2) are islands that
+    overlap one another, none overlapping itself; else None."""
+    sides = tris[:, [0, 1, 1, 2]].reshape(-1, 2)
+    _, labels = connected_components(coo_matrix((np.ones(len(sides)), (sides[:, 0], sides[:, 1])),
+                                                shape=(len(flat), len(flat))), directed=False)
+    _, parts = np.unique(labels[tris[:, 0]], return_inverse=True)
+    parts = parts.ravel()
+    if parts.max() == 0 or not _faces_overlap(flat, tris):
+        return None
+    if any(_faces_overlap(flat, tris[parts == k]) for k in range(parts.max() + 1)):
+        return None
+    return parts
 
 
 def _outline_graph(flat, tris, loops, density):

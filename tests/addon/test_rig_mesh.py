@@ -332,6 +332,32 @@ def assert_arm_up_body_still(shown, rest, is_arm):
     np.testing.assert_allclose(moved[is_arm], np.tile([0.0, 1.0], (int(is_arm.sum()), 1)), atol=1e-4)
 
 
+def test_a_low_poly_puppet_gets_a_graph_for_each_part(addon, quiet):
+    """A body quad and an arm quad over it, one mesh: Bind made the mesh its own graph (its
+    islands overlap), four points a part, so the arm took one handle and refused a second, with
+    advice (a higher Graph Density) that did not help. Each island now gets an outline graph of
+    its own, kept apart: the arm bends about a shoulder handle while the body stays put."""
+    verts = [(-0.5, -1, 0), (0.5, -1, 0), (0.5, 1, 0), (-0.5, 1, 0), (0.3, 0.4, 0), (2.5, 0.4, 0), (2.5, 0.7, 0),
+             (0.3, 0.7, 0)]
+    mesh = bpy.data.meshes.new("Puppet")
+    mesh.from_pydata(verts, [], [(0, 1, 2, 3), (4, 5, 6, 7)])
+    obj = bpy.data.objects.new("Puppet", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert len(obj.shapedeform.cage.data.vertices) > 200
+    checks.add_handle(obj, (0.0, -0.9, 0.0))
+    checks.add_handle(obj, (0.6, 0.55, 0.0))  # the shoulder, off the body
+    hand = checks.add_handle(obj, (2.4, 0.55, 0.0))
+    hand.location.y += 0.8
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    rest, shown = checks.mesh_points(obj), checks.evaluated_mesh_points(obj)
+    moved = np.linalg.norm((shown - rest)[:, :2], axis=1)
+    np.testing.assert_allclose(moved[:4], 0.0, atol=1e-4)  # the body, under the arm's root too
+    assert moved[5:7].min() > 0.5 and moved[4] < 0.3
+
+
 def wind_the_other_way(obj, faces):
     """Reverse the winding of ``faces`` (indices), as a flipped normal shows in Blender."""
     bm = bmesh.new()
@@ -343,18 +369,24 @@ def wind_the_other_way(obj, faces):
 
 
 @pytest.mark.parametrize("flipped", ["none", "one arm face"])
-def test_a_puppets_overlapping_islands_move_apart(addon, flipped):
-    """Its graph is the mesh itself; the arm dragged up takes all its own vertices along and
-    none of the body's (those under the arm jumped with it, and the arm's over the body stayed
-    behind, where the modifier looked points up by their place). With one arm face wound the
-    other way, its boundary read as pinched and the graph was built from the faces' union,
-    which merged the arm into the body: the body moved up to 0.73 with the hand."""
+@pytest.mark.parametrize("graph_mode", ["OWN", "AUTO"])
+def test_a_puppets_overlapping_islands_move_apart(addon, flipped, graph_mode):
+    """The arm dragged up takes all its own vertices along and none of the body's (those under
+    the arm jumped with it, and the arm's over the body stayed behind, where the modifier
+    looked points up by their place), the mesh its own graph or, by default, each island an
+    outline graph of its own. With one arm face wound the other way, its boundary read as
+    pinched and the graph was built from the faces' union, which merged the arm into the body:
+    the body moved up to 0.73 with the hand."""
     obj, body = puppet()
+    obj.shapedeform.graph_mode = graph_mode
     if flipped == "one arm face":
         wind_the_other_way(obj, [len(obj.data.polygons) - 1])  # the arm's faces come last
     rest = checks.mesh_points(obj).copy()
     pose_puppet(obj)
-    assert len(obj.shapedeform.cage.data.vertices) == len(rest)  # the mesh is its own graph
+    if graph_mode == "OWN":
+        assert len(obj.shapedeform.cage.data.vertices) == len(rest)  # the mesh is its own graph
+    else:
+        assert len(obj.shapedeform.cage.data.vertices) > 3 * len(rest)  # an outline graph
     assert_arm_up_body_still(checks.evaluated_mesh_points(obj), rest, np.arange(len(rest)) >= body)
 
 
@@ -594,8 +626,10 @@ def test_a_puppets_islands_last_through_reload_duplicates_join_and_undo_and_go_o
 
 def test_a_puppet_bound_by_an_older_version_poses_as_it_did(addon):
     """A rig bound before vertices kept their islands (neither the mesh nor the cage has them)
-    poses exactly as the rig bound now: unedited, its vertices are its cage's points."""
+    poses exactly as the rig bound now: unedited, its vertices are its cage's points (the mesh
+    was its own graph, as older versions made it)."""
     obj, body = puppet()
+    obj.shapedeform.graph_mode = "OWN"
     pose_puppet(obj)
     posed = checks.evaluated_mesh_points(obj).copy()
     island = addon.shapedeform_addon.nodes.ISLAND
