@@ -141,8 +141,10 @@ class Rig:
     def cage_points(self, positions):
         """The cage's points (n, 3) float32 in rig space for graph ``positions`` (n, 2), lifted
         off the plane so that where the pose overlaps itself one layer is in front."""
-        score = depth.moved_score(self.graph.points, positions, self.graph.size)
-        lift = depth.heights(score, self.graph.size, self.in_front, self.overlap_reach)
+        graph = self.graph
+        score = depth.moved_score(graph.points, positions, graph.size) * \
+            depth.overlap_reach(graph.points, positions, graph.edges, graph.triangles, graph.size)
+        lift = depth.heights(score, graph.size, self.in_front, self.overlap_reach)
         return self.plane.to_3d(positions, lift).astype(np.float32)
 
 

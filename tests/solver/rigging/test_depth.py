@@ -73,3 +73,27 @@ def test_reach_tints_follow_the_summed_amounts():
     assert colors[3, :3].tolist() == [0, 0, 1] and np.isclose(colors[3, 3], 0.3)  # 5 of 10
     assert depth.stiffness([], np.zeros((0, 4))) is None
     assert np.allclose(depth.stiffness([5.0], [[0.0, 0.0, 0.0, 1.0]]), [1, 1, 1, 6])
+
+
+def test_the_automatic_order_reaches_only_where_the_pose_overlaps_itself():
+    """A strip bent into a U is lifted nowhere (nothing overlaps: a lift pushed it through an
+    object set just in front); folded back over itself, the overlap and its surroundings get
+    the order, and the far end none."""
+    from solver import build_graph
+
+    graph = build_graph([np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 1.0], [0.0, 1.0]])])
+    rest, size = graph.points, graph.size
+
+    def bent(angle_per_unit):  # the strip's x wound round a circle, its y the radius's change
+        theta = angle_per_unit * rest[:, 0]
+        radius = 1.0 / angle_per_unit + rest[:, 1]
+        return np.column_stack([radius * np.sin(theta), 1.0 / angle_per_unit - radius * np.cos(theta)])
+
+    u_shape = bent(np.pi / 4.0)  # half a turn over the strip's length: no overlap
+    np.testing.assert_array_equal(depth.overlap_reach(rest, u_shape, graph.edges, graph.triangles, size), 0.0)
+    np.testing.assert_array_equal(depth.overlap_reach(rest, rest, graph.edges, graph.triangles, size), 0.0)
+    folded = bent(2.4 * np.pi / 4.0)  # 1.2 turns: the end comes back over the start
+    reach = depth.overlap_reach(rest, folded, graph.edges, graph.triangles, size)
+    assert reach.max() == 1.0 and np.all((reach >= 0.0) & (reach <= 1.0))
+    middle = np.abs(rest[:, 0] - 2.0) < 0.2
+    assert np.all(reach[middle] == 0.0) and np.all(reach[rest[:, 0] < 0.2] == 1.0)
