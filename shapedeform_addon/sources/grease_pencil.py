@@ -211,7 +211,6 @@ def _numbered_from(strokes):
     return numbered
 
 
-
 def _hidden_layers_advice(layers, settings):
     """Advice on hidden layers rigged because no layers were named ("" when none is)."""
     hidden = [layer.name for layer in layers if layer.hide] if not settings.layers.strip() else []
@@ -290,9 +289,9 @@ def keep_marks(obj):
     if not obj.shapedeform.is_bound:
         return
     settings = obj.shapedeform
-    kept = {key: attribute for key, attribute in ((RIGGED_NAMES, _layer_attribute(data, settings.get(RIGGED_KEY), "BOOLEAN")),
-                                                  (LAYER_ISLANDS, _layer_attribute(data, ISLAND, "INT8")))
-            if attribute is not None}
+    found = ((RIGGED_NAMES, _layer_attribute(data, settings.get(RIGGED_KEY), "BOOLEAN")),
+             (LAYER_ISLANDS, _layer_attribute(data, ISLAND, "INT8")))
+    kept = {key: attribute for key, attribute in found if attribute is not None}
     if not kept:
         return
     layers = [layer.name for layer in data.layers]
