@@ -104,10 +104,10 @@ def _covered(points, triangles):
 
     Each point is tested against the triangles whose bounding boxes share its cell of a grid
     about a triangle's size (shapely's tree took 2.5 ms at 400 points and 30 ms at 4,000; this
-    0.7 and 10)."""
-    corners = points[triangles]
-    low, high = corners.min(axis=1), corners.max(axis=1)
-    cell = max(float(np.sqrt(np.median(np.prod(high - low, axis=1)))), 1e-300)
+    0.7 and 6)."""
+    a, b, c = (points[triangles[:, i]] for i in range(3))
+    low, high = np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
+    cell = max(float(np.sqrt(np.median((high[:, 0] - low[:, 0]) * (high[:, 1] - low[:, 1])))), 1e-300)
     origin = points.min(axis=0)
     first, last = ((np.floor((bound - origin) / cell)).astype(np.int64) for bound in (low, high))
     span = last - first + 1
@@ -122,15 +122,14 @@ def _covered(points, triangles):
     start, stop = np.searchsorted(keys, cells, "left"), np.searchsorted(keys, cells, "right")
     point = np.repeat(np.arange(len(points)), stop - start)
     candidate = triangle[np.repeat(start, stop - start) + _ranks(stop - start)]
-    not_corner = ~(triangles[candidate] == point[:, None]).any(axis=1)
+    not_corner = (triangles[candidate, 0] != point) & (triangles[candidate, 1] != point) & \
+        (triangles[candidate, 2] != point)
     point, candidate = point[not_corner], candidate[not_corner]
-    a, b, c = (corners[candidate, i] for i in range(3))
-    p = points[point]
-    orientation = np.sign(_cross(a, b, c))
-    tolerance = 1e-12 * np.abs(_cross(a, b, c))
-    inside = np.ones(len(point), dtype=bool)
-    for u, v in ((a, b), (b, c), (c, a)):
-        inside &= _cross(u, v, p) * orientation > tolerance
+    a, b, c, p = a[candidate], b[candidate], c[candidate], points[point]
+    area = _cross(a, b, c)
+    orientation, tolerance = np.sign(area), 1e-12 * np.abs(area)
+    inside = (_cross(a, b, p) * orientation > tolerance) & (_cross(b, c, p) * orientation > tolerance) & \
+        (_cross(c, a, p) * orientation > tolerance)
     return np.unique(point[inside])
 
 
