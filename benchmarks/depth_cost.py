@@ -5,7 +5,7 @@ Run: .venv/bin/python benchmarks/depth_cost.py [--repeats 200]
 On the random-drag benchmark's shapes at the paper's size and at about 5,000 points (seed 2006,
 each shape's first drag), times in turns, median: the solve (the add-on's default deformer, 15
 iterations), and what the add-on adds after it every update (``solver.rigging.depth``): the
-automatic score, where the pose overlaps itself (``overlap_reach``: the automatic order applies
+automatic score, where the pose overlaps itself (``automatic_reach``: the automatic order applies
 only there) and the heights with four overlap pins' amounts. The pins' reach (a shortest-
 path search per pin along the graph) is computed once per handle set, when the rig is built,
 and is timed on its own.
@@ -55,9 +55,11 @@ def main(argv=None):
             reach = depth.pin_weights(graph.points, graph.edges, pins, extents)
             amounts = np.array([1.0, -1.0, 0.5, 2.0])
 
+            lengths = depth.edge_lengths(graph.points, graph.edges)  # once per rig
+
             def per_update():
                 score = depth.moved_score(graph.points, posed, graph.size) * \
-                    depth.overlap_reach(graph.points, posed, graph.edges, graph.triangles, graph.size)
+                    depth.automatic_reach(posed, graph.triangles, lengths, graph.size)
                 return depth.heights(score, graph.size, amounts, reach)
 
             solve, update = median_ms([lambda: deformer.solve(case.targets, max_iterations=15), per_update],

@@ -83,6 +83,7 @@ class Rig:
         self.overlap_reach = depth.pin_weights(self.graph.points, self.graph.edges, [point for _, point in overlap],
                                                extents * self.graph.size)
         self.in_front = np.zeros(len(overlap))
+        self.edge_lengths = depth.edge_lengths(self.graph.points, self.graph.edges)  # for cage_points
         self.signature = signature(obj, depsgraph)
         # The pose shown (the cage's, as saved or last written): graph positions (n, 2) and the
         # cage's points (n, 3) in rig space, lifted where it overlaps itself; and whether it is
@@ -143,7 +144,7 @@ class Rig:
         off the plane so that where the pose overlaps itself one layer is in front."""
         graph = self.graph
         score = depth.moved_score(graph.points, positions, graph.size) * \
-            depth.overlap_reach(graph.points, positions, graph.edges, graph.triangles, graph.size)
+            depth.automatic_reach(positions, graph.triangles, self.edge_lengths, graph.size)
         lift = depth.heights(score, graph.size, self.in_front, self.overlap_reach)
         return self.plane.to_3d(positions, lift).astype(np.float32)
 

@@ -14,7 +14,7 @@ The order, per graph point, is a score:
   smoothly over the shape, a shape moved as a whole stays flat, and however far a handle goes
   the lift stays within a pin's (a handle keyed a million sizes away lifted the shape 10,000
   sizes off its plane). Only where the pose overlaps itself, and near there
-  (:func:`overlap_reach`): elsewhere there is nothing to put in front, and a lift would push
+  (:func:`automatic_reach`): elsewhere there is nothing to put in front, and a lift would push
   the shape through objects set just in front of it (QA: a body bent under a card 1 cm in
   front covered half of it);
 - plus overlap pins: each adds its ``in_front`` amount (positive in front, negative behind)
@@ -37,8 +37,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-__all__ = ["HEIGHT_PER_SCORE", "MAX_SCORE", "AUTO_WEIGHT", "EDGE", "OVERLAP_REACH", "moved_score", "overlap_reach",
-           "pin_weights", "heights", "stiffness", "reach_tints"]
+__all__ = ["HEIGHT_PER_SCORE", "MAX_SCORE", "AUTO_WEIGHT", "EDGE", "OVERLAP_REACH", "moved_score", "automatic_reach",
+           "edge_lengths", "pin_weights", "heights", "stiffness", "reach_tints"]
 
 HEIGHT_PER_SCORE = 0.02
 # Pins' amounts add up without bound (an In Front typed as -1000 put the bar 20 of its sizes
@@ -73,7 +73,7 @@ def moved_score(rest, posed, size):
     return np.tanh(AUTO_WEIGHT * (moved - moved.min()) / size) if len(moved) else moved
 
 
-def overlap_reach(rest, posed, edges, triangles, size):
+def automatic_reach(posed, triangles, lengths, size):
     """Where the automatic order applies: 1 where the posed shape overlaps itself (a point
     inside a posed triangle it is no corner of: a fold, or islands over one another), falling
     smoothly to 0 at ``OVERLAP_REACH`` of the size from there, along the rest graph's edges;
@@ -81,10 +81,11 @@ def overlap_reach(rest, posed, edges, triangles, size):
 
     Parameters
     ----------
-    rest, posed : (n, 2) array_like
-        Graph points at rest and posed.
-    edges : (e, 2) array_like of int
+    posed : (n, 2) array_like
+        Graph points posed.
     triangles : (t, 3) array_like of int
+    lengths : (n, n) scipy.sparse matrix
+        The rest graph's edge lengths (:func:`edge_lengths`; the same for every pose).
     size : float
 
     Returns
@@ -95,8 +96,7 @@ def overlap_reach(rest, posed, edges, triangles, size):
     if len(inside) == 0:
         return np.zeros(len(posed))
     extent = OVERLAP_REACH * size
-    distance = dijkstra(_edge_graph(rest, edges), directed=False, indices=inside, min_only=True, limit=extent)
-    return _falloff(distance, extent)
+    return _falloff(dijkstra(lengths, directed=False, indices=inside, min_only=True, limit=extent), extent)
 
 
 def _covered(points, triangles):
@@ -167,11 +167,11 @@ def pin_weights(points, edges, pins, extents):
     extents = np.asarray(extents, dtype=np.float64).reshape(-1)
     if len(pins) == 0:
         return np.zeros((0, len(points)))
-    distance = dijkstra(_edge_graph(points, edges), directed=False, indices=pins, limit=float(extents.max()))
+    distance = dijkstra(edge_lengths(points, edges), directed=False, indices=pins, limit=float(extents.max()))
     return _falloff(distance, extents[:, None])
 
 
-def _edge_graph(points, edges):
+def edge_lengths(points, edges):
     """The graph's edges (e, 2) as a sparse (n, n) matrix of their lengths at ``points`` (n, 2)."""
     points = np.asarray(points, dtype=np.float64)
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)

@@ -83,6 +83,7 @@ def test_the_automatic_order_reaches_only_where_the_pose_overlaps_itself():
 
     graph = build_graph([np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 1.0], [0.0, 1.0]])])
     rest, size = graph.points, graph.size
+    lengths = depth.edge_lengths(rest, graph.edges)
 
     def bent(angle_per_unit):  # the strip's x wound round a circle, its y the radius's change
         theta = angle_per_unit * rest[:, 0]
@@ -90,10 +91,10 @@ def test_the_automatic_order_reaches_only_where_the_pose_overlaps_itself():
         return np.column_stack([radius * np.sin(theta), 1.0 / angle_per_unit - radius * np.cos(theta)])
 
     u_shape = bent(np.pi / 4.0)  # half a turn over the strip's length: no overlap
-    np.testing.assert_array_equal(depth.overlap_reach(rest, u_shape, graph.edges, graph.triangles, size), 0.0)
-    np.testing.assert_array_equal(depth.overlap_reach(rest, rest, graph.edges, graph.triangles, size), 0.0)
+    np.testing.assert_array_equal(depth.automatic_reach(u_shape, graph.triangles, lengths, size), 0.0)
+    np.testing.assert_array_equal(depth.automatic_reach(rest, graph.triangles, lengths, size), 0.0)
     folded = bent(2.4 * np.pi / 4.0)  # 1.2 turns: the end comes back over the start
-    reach = depth.overlap_reach(rest, folded, graph.edges, graph.triangles, size)
+    reach = depth.automatic_reach(folded, graph.triangles, lengths, size)
     assert reach.max() == 1.0 and np.all((reach >= 0.0) & (reach <= 1.0))
     middle = np.abs(rest[:, 0] - 2.0) < 0.2
     assert np.all(reach[middle] == 0.0) and np.all(reach[rest[:, 0] < 0.2] == 1.0)
