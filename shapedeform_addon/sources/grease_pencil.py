@@ -312,6 +312,7 @@ def _layer_attribute(data, name, data_type):
 
 
 def _layer_values(attribute, count):
+    """The values (count,) of LAYER ``attribute``: bool marks, or int32 islands."""
     values = np.zeros(count, dtype=bool if attribute.data_type == "BOOLEAN" else np.int32)
     attribute.data.foreach_get("value", values)
     return values

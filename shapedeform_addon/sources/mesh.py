@@ -12,6 +12,8 @@ become; unbind removes it.
 mesh; :func:`restore_legacy` gives them back when such a rig is unbound.
 """
 
+import functools
+
 import numpy as np
 import shapely
 from scipy.sparse import coo_matrix
@@ -137,12 +139,13 @@ def prepare(obj, settings):
     # outline graph each, kept apart; where the mesh is its own graph a part had its corners
     # alone, too few points for a second handle. Up to the size the mesh could be its own graph:
     # the test unites the faces (3.2 s for 100,000 triangles in 20 islands).
-    parts = _overlapping_islands(flat, tris) if pinched is None and mode != "OWN" and len(flat) <= OWN_GRAPH_LIMIT \
-        else None
+    faces_overlap = functools.cache(functools.partial(_faces_overlap, flat, tris))  # asked at most once
+    parts = _overlapping_islands(flat, tris, faces_overlap) \
+        if pinched is None and mode != "OWN" and len(flat) <= OWN_GRAPH_LIMIT else None
     if mode == "AUTO":
         own = len(flat) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped and pinched is None
         if own and 2 * sum(len(loop) for loop in loops) >= len(flat):  # mostly outline
-            own = parts is None and _faces_overlap(flat, tris)
+            own = parts is None and faces_overlap()
         mode = "OWN" if own else "OUTLINE"
     point_part = None
     try:
@@ -178,15 +181,16 @@ def prepare(obj, settings):
     return Prepared(plane, graph, lambda o: mark_islands(o, vertex_islands), advice=advice, islands=islands)
 
 
-def _overlapping_islands(flat, tris):
+def _overlapping_islands(flat, tris, faces_overlap):
     """Each triangle's island (t,) where the faces (t, 3) over points (n, 2) are islands that
-    overlap one another, none overlapping itself; else None."""
+    overlap one another, none overlapping itself; else None. ``faces_overlap()`` tells whether
+    any faces overlap (:func:`_faces_overlap`)."""
     sides = tris[:, [0, 1, 1, 2]].reshape(-1, 2)
     _, labels = connected_components(coo_matrix((np.ones(len(sides)), (sides[:, 0], sides[:, 1])),
                                                 shape=(len(flat), len(flat))), directed=False)
     _, parts = np.unique(labels[tris[:, 0]], return_inverse=True)
     parts = parts.ravel()
-    if parts.max() == 0 or not _faces_overlap(flat, tris):
+    if parts.max() == 0 or not faces_overlap():
         return None
     if any(_faces_overlap(flat, tris[parts == k]) for k in range(parts.max() + 1)):
         return None
