@@ -42,7 +42,9 @@ def _chosen_layers(obj, settings):
     missing = [n for n in names if n not in layers]
     if missing:
         raise RigError(f"'{obj.name}' has no layer {', '.join(repr(n) for n in missing)}")
-    return [layers[n] for n in names] if names else list(layers)
+    # In drawing order, the top layer last, whatever order the names come in: Layers Apart
+    # numbers its parts so, and a handle where parts lie level goes on the last (the one shown).
+    return [layer for layer in layers if layer.name in names] if names else list(layers)
 
 
 def bound_frames(obj):

@@ -261,10 +261,12 @@ def _layer_at(posed_points, posed_heights, triangles, point, height):
     layer_heights = np.einsum("tk,tk->t", weights[inside], np.asarray(posed_heights, dtype=np.float64)[triangles[inside]])
     # Float32 places and the modifier's own interpolation are off the layers by a hair.
     hair = 1e-5 * float(np.ptp(np.asarray(posed_points, dtype=np.float64), axis=0).max(initial=0.0))
-    if height < layer_heights.min() - hair:  # under every layer (on the plane, as handles are): the one in front
-        best = inside[np.argmax(layer_heights)]
-    else:
-        best = inside[np.argmin(np.abs(layer_heights - height))]
+    # Under every layer (on the plane, as handles are): the one in front.
+    target = layer_heights.max() if height < layer_heights.min() - hair else height
+    gap = np.abs(layer_heights - target)
+    # Layers level with one another (parts that overlap at rest): the last part's triangles,
+    # which a drawing's Layers Apart rig numbers in its layers' order, the top one last.
+    best = inside[np.flatnonzero(gap <= gap.min() + hair)[-1]]
     return best, weights[best]
 
 

@@ -312,6 +312,25 @@ def test_layers_apart_keep_an_arm_drawn_over_the_body_apart_from_it(addon, tmp_p
     np.testing.assert_array_equal(layer_points(obj, "Body"), body)
 
 
+@pytest.mark.parametrize("arm_first, layers", [(False, ""), (True, ""), (False, "Arm, Body"), (True, "Body, Arm")])
+def test_a_handle_at_rest_where_layers_overlap_holds_the_layer_drawn_on_top(addon, quiet, arm_first, layers):
+    """With Layers Apart, a handle added in Object Mode where the arm lies over the body at rest
+    (both level, in the drawing's plane) holds the layer drawn on top, in whatever order the
+    Layers field names them: it held whichever part's triangle came first."""
+    obj = body_and_arm(arm_first=arm_first)
+    obj.shapedeform.layers_apart = True
+    obj.shapedeform.layers = layers
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    top = obj.data.layers[-1].name
+    rest = {name: layer_points(obj, name, False) for name in ("Body", "Arm")}
+    handle = checks.add_handle(obj, checks.world(obj, (-0.3, 0.0, 0.7)))  # over both
+    handle.location.z += 0.3
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    moved = {name: np.abs(layer_points(obj, name) - points).max() for name, points in rest.items()}
+    assert moved[top] > 0.25 and moved[({"Body", "Arm"} - {top}).pop()] < 1e-4, (top, moved)
+
+
 @pytest.mark.parametrize("arm_first", [False, True])
 def test_a_handle_at_selected_arm_points_over_the_body_holds_the_arm_alone(addon, quiet, arm_first):
     """With Layers Apart, points selected on the arm where it lies over the body give handles

@@ -186,6 +186,28 @@ def test_a_location_lifted_in_front_of_the_shape_goes_on_the_layer_in_front():
     assert triangle is None and np.array_equal(point, flat[nearest]) and np.array_equal(centre, flat[nearest])
 
 
+def test_where_parts_overlap_level_the_handle_goes_on_the_last_part():
+    """At rest the arm lies level with the body (no depth yet): a location over both, on the
+    plane or lifted in front, goes on the last part (a drawing's top layer), not on whichever
+    triangle comes first; a body lifted 1e-3 in front, more than rounding, is in front."""
+    from solver.rigging.drag import above_every_layer
+    from solver.rigging.handles import place
+
+    points, triangles, pieces = puppet()
+    shape = np.column_stack([points, np.zeros(len(points))])
+    plane = fit_plane(shape)
+    flat = plane.to_2d(shape)
+    on_plane = np.array([1.5, 0.5, 0.0])
+    for heights in (np.zeros(len(points)), np.full(len(points), 0.01)):
+        for location in (on_plane, above_every_layer(on_plane, plane.to_3d(flat, heights), plane.normal)):
+            _, _, triangle = place(plane, np.eye(4), location, flat, flat, triangles, posed_heights=heights)
+            assert pieces[triangles[triangle, 0]] == 1
+    body_in_front = np.where(pieces == 0, 1e-3, 0.0)
+    lifted = above_every_layer(on_plane, plane.to_3d(flat, body_in_front), plane.normal)
+    _, _, triangle = place(plane, np.eye(4), lifted, flat, flat, triangles, posed_heights=body_in_front)
+    assert pieces[triangles[triangle, 0]] == 0
+
+
 @pytest.mark.parametrize("scale, offset", [(1.0, 0.0), (0.1, 0.0), (1.0, 1e3), (7.3, -40.0)])
 def test_select_region_takes_every_point_tied_with_the_last(scale, offset):
     """On a grid a vertex's four neighbours are equally near: a region of at least three takes
