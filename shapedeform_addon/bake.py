@@ -213,11 +213,20 @@ def _may_follow_others(obj):
         link = item.object
         while link is not None and link not in own:
             drivers = link.animation_data.drivers if link.animation_data is not None else ()
-            aimed = [c for c in link.constraints if getattr(c, "target", None) not in (None, *own)]
+            aimed = [c for c in link.constraints if _objects_read(c) - own]
             if aimed or len(drivers) or link.type != "EMPTY":
                 return True
             link = link.parent
     return False
+
+
+def _objects_read(constraint):
+    """The objects ``constraint`` reads: its target, custom space, camera, ..., and each of an
+    Armature constraint's targets (a list, which ``target`` alone missed)."""
+    found = [getattr(constraint, prop.identifier) for prop in constraint.bl_rna.properties
+             if prop.type == "POINTER" and prop.fixed_type.identifier == "Object"]
+    found += [target.target for target in getattr(constraint, "targets", ())]
+    return {obj for obj in found if obj is not None}
 
 
 class Bake:

@@ -202,6 +202,8 @@ def _add_handle(source, handle, owner, to_rig):
     for i, constraint in enumerate(handle.constraints):
         _add_settings(source, ("constraint", i, constraint.type), constraint, animated,
                       f"{constraint.path_from_id()}.")
+        for k, target in enumerate(getattr(constraint, "targets", ())):  # an Armature constraint's list
+            _add_settings(source, ("constraint target", i, k), target, animated, f"{target.path_from_id()}.")
 
 
 def _add_animation(source, block, wanted):

@@ -106,7 +106,8 @@ def _output_path(output):
 
 
 def _bake(args):
-    scene = bpy.data.scenes.get(args.scene) if args.scene else bpy.context.scene
+    # An empty name (a farm's unset variable) is refused, not taken for the active scene.
+    scene = bpy.data.scenes.get(args.scene) if args.scene is not None else bpy.context.scene
     if scene is None:
         raise _UsageError(f"no scene named '{args.scene}' in {bpy.data.filepath or 'the file'}")
     if args.step < 1:

@@ -237,6 +237,8 @@ def test_command_line_bakes_a_saved_file(addon, tmp_path, capsys):
                          (["bake", "--frames", "1-3000000000"], "run past Blender's"),  # not 3e9 frames' memory
                          (["bake", "--frames", "99999999999999999999"], "run past Blender's"),
                          (["bake", "--view-layer", "Nobody"], "no view layer named 'Nobody'"),
+                         (["bake", "--scene", "Nobody"], "no scene named 'Nobody'"),
+                         (["bake", "--scene", ""], "no scene named ''"),  # an unset farm variable
                          (["frobnicate"], "invalid choice")]:
         assert main(bad) == 2, bad
         assert message in capsys.readouterr().err
@@ -332,9 +334,10 @@ def test_a_bake_with_time_stretching_plays_as_the_live_rig(addon):
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(obj), expected)
 
 
-def hat_on_a_head():
+def hat_on_a_head(by="COPY_LOCATION"):
     """Rig B, whose handle follows a point of rigged object A's deformed shape (a hat pinned to
-    a head, here by Copy Location to A's vertex group), and A; with B's live pose at each frame."""
+    a head, here by Copy Location to A's vertex group, or with ``by`` 'ARMATURE' by an Armature
+    constraint on a bone that copies it), and A; with B's live pose at each frame."""
     first = grid("A")
     rig(first, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.6, 0.0))
     second = grid("B")
@@ -346,8 +349,12 @@ def hat_on_a_head():
     pinned = checks.add_handle(second, checks.world(second, [1.0, 0.0, 0.0]))
     tip = int(np.argmax(checks.mesh_points(first)[:, 0]))
     first.vertex_groups.new(name="tip").add([tip], 1.0, "REPLACE")
-    follow = pinned.constraints.new("COPY_LOCATION")
-    follow.target, follow.subtarget = first, "tip"
+    if by == "ARMATURE":
+        target = pinned.constraints.new("ARMATURE").targets.new()
+        target.target, target.subtarget = armature_following(first, "tip"), "Bone"
+    else:
+        follow = pinned.constraints.new("COPY_LOCATION")
+        follow.target, follow.subtarget = first, "tip"
     scene = bpy.context.scene
     expected = {}
     for frame in FRAMES:
@@ -358,6 +365,24 @@ def hat_on_a_head():
     return first, second, expected
 
 
+def armature_following(obj=None, group=None):
+    """An armature with bones 'Bone' (at the origin) and 'Other' (at x = 1), 'Bone' with Copy
+    Location to ``obj``'s vertex ``group`` where given."""
+    armature = bpy.data.objects.new("Armature", bpy.data.armatures.new("Armature"))
+    bpy.context.scene.collection.objects.link(armature)
+    bpy.context.view_layer.objects.active = armature
+    bpy.ops.object.mode_set(mode="EDIT")
+    for name, x in (("Bone", 0.0), ("Other", 1.0)):
+        bone = armature.data.edit_bones.new(name)
+        bone.head, bone.tail = (x, 0.0, 0.0), (x, 0.2, 0.0)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    if obj is not None:
+        copy = armature.pose.bones["Bone"].constraints.new("COPY_LOCATION")
+        copy.target, copy.subtarget = obj, group
+    bpy.context.view_layer.update()
+    return armature
+
+
 def test_a_rig_whose_handle_follows_another_rigs_shape_bakes_on_the_same_frame(addon):
     """Each baked frame of B is posed from A's pose at that frame (B was baked from A's pose
     at the frame before: one frame late)."""
@@ -366,11 +391,13 @@ def test_a_rig_whose_handle_follows_another_rigs_shape_bakes_on_the_same_frame(a
     assert_plays_without_extension(lambda: checks.evaluated_mesh_points(second), expected)
 
 
-def test_baking_only_the_rig_that_follows_another_live_rig_poses_that_rig_on_every_frame(addon):
+@pytest.mark.parametrize("by", ["COPY_LOCATION", "ARMATURE"])
+def test_baking_only_the_rig_that_follows_another_live_rig_poses_that_rig_on_every_frame(addon, by):
     """The animator selects only the hat and bakes it: A stays live, and each baked frame of B
     is still posed from A's pose at that frame (B was baked against A's pose frozen at the
-    bake's first frame, up to 0.6 off by frame 6); A shows its live pose afterwards."""
-    first, second, expected = hat_on_a_head()
+    bake's first frame, up to 0.6 off by frame 6); A shows its live pose afterwards. Also where
+    the hat follows by an Armature constraint, whose targets are a list (the bake missed them)."""
+    first, second, expected = hat_on_a_head(by)
     scene = bpy.context.scene
     scene.frame_set(3)
     head = checks.evaluated_mesh_points(first).copy()
@@ -964,6 +991,34 @@ def test_a_bake_says_it_is_out_of_date_once_what_it_was_made_from_changes(addon)
     assert not any(label.startswith("Out of date") for label in drawn(bpy.context, labels=True))
     obj.shapedeform.iterations = 3
     assert not bake_source.is_out_of_date(obj)
+
+
+def test_a_bake_is_out_of_date_once_an_armature_constraints_targets_change(addon):
+    """A handle held by an Armature constraint: its targets are a list, which the bake's digest
+    skipped, so another bone, another weight or a second target (each moving the shape) left
+    the bake up to date."""
+    bake, bake_source = addon.shapedeform_addon.bake, addon.shapedeform_addon.bake_source
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    armature = armature_following()
+    armature.pose.bones["Bone"].location = (0.0, 0.0, 0.3)
+    armature.pose.bones["Other"].rotation_euler.z = 0.8
+    constraint = obj.shapedeform.handles[0].object.constraints.new("ARMATURE")
+    target = constraint.targets.new()
+    target.target, target.subtarget = armature, "Bone"
+
+    def second_target():
+        added = constraint.targets.new()
+        added.target, added.subtarget = armature, "Bone"
+
+    for change in (partial(setattr, target, "subtarget", "Other"), partial(setattr, target, "weight", 0.3),
+                   second_target):
+        assert bake.bake_objects([obj], 1, 3) == [obj]
+        bpy.context.view_layer.update()
+        assert not bake_source.is_out_of_date(obj)
+        change()
+        bpy.context.view_layer.update()
+        assert bake_source.is_out_of_date(obj), change
 
 
 def test_an_unchanged_bake_stays_up_to_date_over_frames_undo_saving_and_the_command_line(addon, tmp_path):
