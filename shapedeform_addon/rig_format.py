@@ -536,8 +536,11 @@ def bake_key_times(count):
 
 # A rig numbers its islands from a first number of its own (:func:`island_numbers`), so that a
 # rigged puppet joined into another keeps numbers that are none of that rig's. Every number stays
-# under 2**24, which the group's float math holds exactly.
+# under ISLANDS_END = 2**20: subdivision (Refine, a Subdivision Surface before the rig) mixes
+# integer attributes in single precision, which put points of numbers near 2**23 a number off
+# (QA: a body's points flew with its arm); 2**20 leaves a margin of 8 (exact up to 2**22, measured).
 ISLANDS_PER_RIG = 4096
+ISLANDS_END = 2**20
 
 
 def island_numbers(pieces, data=None):
@@ -568,7 +571,7 @@ def first_island(mesh):
 def _free_first_island(taken):
     """A first island number none of ``taken`` has (0 when all are), drawn at random: rigs bound
     in different files and appended into one then differ too, as rigs of one file do."""
-    free = sorted(set(range(ISLANDS_PER_RIG, ISLANDS_PER_RIG ** 2, ISLANDS_PER_RIG)) - set(taken))
+    free = sorted(set(range(ISLANDS_PER_RIG, ISLANDS_END, ISLANDS_PER_RIG)) - set(taken))
     return random.choice(free) if free else 0
 
 

@@ -527,13 +527,13 @@ def _separated(addon, obj, body):
             for part in parts]
 
 
-def _refined(addon, obj, body):
-    """The modifier's Refine at 1 (the mesh subdivided before it is deformed); the refined
+def _refined(addon, obj, body, level=1):
+    """The modifier's Refine at ``level`` (the mesh subdivided before it is deformed); the refined
     points' rest read with the hand put back, their island from the refined mesh's edges."""
     shape_deform = addon.shapedeform_addon
     modifier = shape_deform.rig_format.modifiers_of(obj)[0]
     refine = shape_deform.nodes.input_identifiers(modifier.node_group)[shape_deform.nodes.REFINE_INPUT]
-    shape_deform.compat.set_modifier_input(modifier, refine, 1)
+    shape_deform.compat.set_modifier_input(modifier, refine, level)
     obj.update_tag()
     hand = obj.shapedeform.handles[1].object
     hand.location.y -= 1.0
@@ -563,6 +563,22 @@ def test_a_puppets_arm_stays_apart_from_its_body_after_edits(addon, edit, quiet)
     for part, rest, is_arm in parts:
         assert part.shapedeform.status == ""
         assert_arm_up_body_still(checks.evaluated_mesh_points(part), rest, is_arm)
+
+
+def test_a_refined_puppet_keeps_its_islands_whatever_first_number_its_rig_drew(addon, monkeypatch, quiet):
+    """Refine's subdivision mixes the island numbers in single precision: from a first number
+    drawn near 2**24, refined body points came out a number off, the arm's, and flew with it
+    (QA: 22 of 81 body points, 3.5 units). Every number now stays under 2**20; here the rig
+    draws the largest first number it may."""
+    monkeypatch.setattr(addon.shapedeform_addon.rig_format.random, "choice", max)
+    obj, body = puppet()
+    pose_puppet(obj)
+    assert 0 < island_numbers_of(addon, obj.data).max() < 2**20
+    checks.select_only(obj)
+    [(part, rest, is_arm)] = _refined(addon, obj, body, level=3)
+    bpy.context.view_layer.update()
+    assert part.shapedeform.status == ""
+    assert_arm_up_body_still(checks.evaluated_mesh_points(part), rest, is_arm)
 
 
 def _copy(obj, linked):
