@@ -14,7 +14,7 @@ from mathutils import Matrix
 from ..solver.rigging.handles import (MIN_REGION_POINTS, distance_off, frame_2d, handle_matrix, place,
                                       region_offsets, select_region)
 from ..solver.rigging.plane import affine_inverse
-from . import compat, rig_format
+from . import compat, rig_format, sources
 from . import rig as rigs
 from .errors import NoPointsLeft, RigError
 
@@ -122,7 +122,11 @@ def add(obj, location, on_rest=False, kind="POSITION", notes=None, island=0, sna
     if kind != "POSITION":
         if notes is not None and distance_off(rig.posed, graph.triangles, point) > 1e-4 * graph.size:
             notes.append(f"the {kind.lower()} pin was added off the shape: it is on the shape's nearest point")
-        return _add_pin(obj, rig, _pin_point(graph, rest_centre, pieces, piece), kind)
+        on = _pin_point(graph, rest_centre, pieces, piece)
+        pin = _add_pin(obj, rig, on, kind)
+        if notes is not None and kind == "OVERLAP":
+            notes.extend(sources.overlap_pin_notes(obj, rig, on, pin.shapedeform.extent * graph.size))
+        return pin
     taken = np.zeros(graph.n, dtype=bool)
     taken[rig.indices] = True
     try:

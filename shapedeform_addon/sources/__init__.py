@@ -19,6 +19,10 @@ Each source module offers the same functions:
 ``selected(obj) -> (k, 3) float64``
     Local rest positions of the selected points (for a handle at each).
 
+Where an overlap pin may order nothing, a source also offers ``overlap_pin_notes(obj, rig,
+point, extent) -> list of str``, sentences for the status bar on a pin just added at graph
+point ``point`` reaching ``extent``; :func:`overlap_pin_notes` gives none for the other sources.
+
 Where a source's points keep their island (a mesh that is its own graph in several islands),
 it also offers ``selected_islands(obj) -> (k,) int or None``: each selected point's island number
 (0 where not known), in ``selected``'s order, or None where the object keeps none. It tells
@@ -30,7 +34,8 @@ from ..errors import RigError, with_article
 from . import curve, grease_pencil, image_plane, mesh, text
 from .prepared import Prepared
 
-__all__ = ["RigError", "with_article", "type_name", "Prepared", "module_for", "kind_of", "selected_islands"]
+__all__ = ["RigError", "with_article", "type_name", "Prepared", "module_for", "kind_of", "selected_islands",
+           "overlap_pin_notes"]
 
 
 def type_name(obj):
@@ -72,3 +77,10 @@ def selected_islands(obj):
     (see the package's docstring; call in Object Mode)."""
     islands = getattr(module_for(obj), "selected_islands", None)
     return None if islands is None else islands(obj)
+
+
+def overlap_pin_notes(obj, rig, point, extent):
+    """Sentences saying where an overlap pin just added to ``obj``'s ``rig`` at graph point
+    ``point``, reaching ``extent``, orders nothing (see the package's docstring)."""
+    notes = getattr(module_for(obj), "overlap_pin_notes", None)
+    return [] if notes is None else notes(obj, rig, point, extent)

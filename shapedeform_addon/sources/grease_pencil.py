@@ -402,6 +402,16 @@ def selected(obj):
     return np.concatenate(chosen).astype(np.float64) if chosen else np.empty((0, 3))
 
 
+def overlap_pin_notes(obj, rig, point, extent):
+    """With Layers Apart each layer is drawn whole, in the drawing's order, whatever its height:
+    a pin orders its own layer's strokes only (QA: an arm layer under the body stayed under it
+    with a pin at 1)."""
+    if rig_format.islands_of(obj.data) is None:
+        return []
+    return ["with Layers Apart the layers are drawn in their order whatever pins say: this pin orders the strokes "
+            "of its own layer only (move a layer up or down to put it in front)"]
+
+
 def selected_islands(obj):
     """Each selected point's island number (k,) int32, its layer's, in :func:`selected`'s order
     (0: not known, a layer added since binding), or None where the layers keep none (a rig

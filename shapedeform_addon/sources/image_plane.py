@@ -29,6 +29,7 @@ from .prepared import Prepared
 
 # Shared with meshes once the cut-out is in place.
 selected, selected_islands = mesh_source.selected, mesh_source.selected_islands
+overlap_pin_notes = mesh_source.overlap_pin_notes  # a plane rigged whole is one quad
 
 
 def _material_index(obj):

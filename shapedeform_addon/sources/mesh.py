@@ -26,8 +26,9 @@ from ...solver.shapes import geometry_rings
 from ...solver.triangulate import triangle_cross
 from ...solver.wording import by_count
 from ...solver.rigging.outline import boundary_loops, smallest_angles, with_area
-from ...solver.rigging.plane import fit_plane
-from .. import rig_format
+from ...solver.rigging.depth import pin_reaches
+from ...solver.rigging.plane import affine_inverse, fit_plane, transform_points
+from .. import compat, nodes, rig_format
 from ..errors import RigError
 from ..nodes import ISLAND
 from .prepared import Prepared
@@ -219,6 +220,24 @@ def _islands(graph, data):
     (:func:`rig_format.island_numbers`); None when the graph is one piece."""
     pieces = graph.components()
     return rig_format.island_numbers(pieces, data) if pieces.max() > 0 else None
+
+
+def overlap_pin_notes(obj, rig, point, extent):
+    """A pin lifts the mesh's own vertices: on a low-poly mesh (a quad per part) all of them may
+    lie beyond its reach, unless the modifier's Refine cuts the faces first (QA: a pin on a quad
+    arm's middle left the arm in front)."""
+    modifiers = rig_format.modifiers_of(obj)
+    if not modifiers or not len(obj.data.vertices):
+        return []
+    if compat.modifier_input(modifiers[0], nodes.input_identifiers(modifiers[0].node_group)[nodes.REFINE_INPUT]):
+        return []
+    to_rig = affine_inverse(rig_format.rig_to_object(obj))
+    vertices = rig.plane.to_2d(transform_points(to_rig, positions(obj.data)))
+    graph = rig.graph
+    if pin_reaches(graph.points, graph.edges, point, extent, vertices, graph.spacing):
+        return []
+    return [f"the overlap pin reaches none of '{obj.name}''s vertices, and a lift moves only those: raise the "
+            "modifier's Refine to cut its faces (or the pin's Extent)"]
 
 
 def mark_islands(obj, islands, domain="POINT", data_type="INT"):

@@ -36,9 +36,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import cKDTree
 
 __all__ = ["HEIGHT_PER_SCORE", "MAX_SCORE", "AUTO_WEIGHT", "EDGE", "OVERLAP_REACH", "moved_score", "automatic_reach",
-           "edge_lengths", "pin_weights", "heights", "stiffness", "reach_tints"]
+           "edge_lengths", "pin_weights", "pin_reaches", "heights", "stiffness", "reach_tints"]
 
 HEIGHT_PER_SCORE = 0.02
 # Pins' amounts add up without bound (an In Front typed as -1000 put the bar 20 of its sizes
@@ -169,6 +170,18 @@ def pin_weights(points, edges, pins, extents):
         return np.zeros((0, len(points)))
     distance = dijkstra(edge_lengths(points, edges), directed=False, indices=pins, limit=float(extents.max()))
     return _falloff(distance, extents[:, None])
+
+
+def pin_reaches(points, edges, pin, extent, others, near):
+    """Whether a pin at graph point ``pin`` reaching ``extent`` (:func:`pin_weights`) comes within
+    ``near`` of any of ``others`` (m, 2): an object's own points, which are all that a lift moves
+    (a low-poly mesh's quad corners may all lie beyond it)."""
+    reached = np.asarray(points, dtype=np.float64)[pin_weights(points, edges, [pin], [extent])[0] > 0.0]
+    others = np.asarray(others, dtype=np.float64).reshape(-1, 2)
+    if not len(reached) or not len(others):
+        return False
+    distance, _ = cKDTree(reached).query(others, distance_upper_bound=near)
+    return bool(np.isfinite(distance).any())
 
 
 def edge_lengths(points, edges):

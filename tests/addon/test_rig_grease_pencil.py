@@ -312,6 +312,21 @@ def test_layers_apart_keep_an_arm_drawn_over_the_body_apart_from_it(addon, tmp_p
     np.testing.assert_array_equal(layer_points(obj, "Body"), body)
 
 
+def test_an_overlap_pin_on_layers_apart_says_the_layers_keep_their_order(addon, capsys):
+    """With Layers Apart each layer is drawn whole, in its order: a pin on the arm orders only
+    the arm's own strokes (QA: a pin at 1 left an arm layer under the body), and says so; on a
+    drawing rigged as one shape it says nothing."""
+    for apart in (True, False):
+        obj = body_and_arm()
+        obj.shapedeform.layers_apart = apart
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+        capsys.readouterr()
+        assert bpy.ops.shapedeform.add_handle(location=checks.world(obj, (1.0, 0.0, 0.7)), kind="OVERLAP") == {
+            "FINISHED"}
+        assert ("with Layers Apart the layers are drawn in their order" in capsys.readouterr().out) == apart
+        bpy.data.objects.remove(obj)
+
+
 @pytest.mark.parametrize("arm_first, layers", [(False, ""), (True, ""), (False, "Arm, Body"), (True, "Body, Arm")])
 def test_a_handle_at_rest_where_layers_overlap_holds_the_layer_drawn_on_top(addon, quiet, arm_first, layers):
     """With Layers Apart, a handle added in Object Mode where the arm lies over the body at rest

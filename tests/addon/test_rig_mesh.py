@@ -358,6 +358,36 @@ def test_a_low_poly_puppet_gets_a_graph_for_each_part(addon, quiet):
     assert moved[5:7].min() > 0.5 and moved[4] < 0.3
 
 
+def test_an_overlap_pin_that_reaches_no_vertex_of_a_low_poly_mesh_says_so(addon, capsys):
+    """A pin lifts the mesh's own vertices: on the middle of a quad arm, beyond the reach of all
+    its corners, it changed nothing and said nothing (QA). It now says so and how to mend it;
+    once the modifier's Refine cuts the faces, the same pin lifts the arm and says nothing."""
+    shape_deform = addon.shapedeform_addon
+    verts = [(-0.5, -1, 0), (0.5, -1, 0), (0.5, 1, 0), (-0.5, 1, 0), (0.3, 0.4, 0), (2.5, 0.4, 0), (2.5, 0.7, 0),
+             (0.3, 0.7, 0)]
+    mesh = bpy.data.meshes.new("Puppet")
+    mesh.from_pydata(verts, [], [(0, 1, 2, 3), (4, 5, 6, 7)])
+    obj = bpy.data.objects.new("Puppet", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    capsys.readouterr()
+    assert bpy.ops.shapedeform.add_handle(location=(1.4, 0.55, 0.0), kind="OVERLAP") == {"FINISHED"}
+    assert "the overlap pin reaches none of 'Puppet''s vertices" in capsys.readouterr().out
+    bpy.context.view_layer.update()
+    assert np.abs(checks.evaluated_vertices(obj)[:, 2]).max() < 1e-6  # nothing lifted
+
+    modifier = shape_deform.rig_format.modifiers_of(obj)[0]
+    refine = shape_deform.nodes.input_identifiers(modifier.node_group)[shape_deform.nodes.REFINE_INPUT]
+    shape_deform.compat.set_modifier_input(modifier, refine, 3)
+    obj.update_tag()
+    bpy.context.view_layer.update()
+    assert checks.evaluated_vertices(obj)[:, 2].max() > 1e-3  # the first pin lifts the arm's refined points
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.add_handle(location=(1.4, 0.55, 0.0), kind="OVERLAP") == {"FINISHED"}
+    assert "reaches none" not in capsys.readouterr().out
+
+
 def wind_the_other_way(obj, faces):
     """Reverse the winding of ``faces`` (indices), as a flipped normal shows in Blender."""
     bm = bmesh.new()

@@ -51,6 +51,17 @@ def test_a_pin_reaches_through_the_shape_not_across_a_gap():
     assert weights[0, 2] == weights[0, 1] == 0.0  # 0.3 away: beyond the extent
 
 
+def test_a_pin_reaches_only_points_near_the_graph_points_it_weighs():
+    """Pin at x = 0.5 reaching 0.25 (graph points 0.3-0.7 weighed): an object's points near
+    them are reached, its corners at the strip's ends are not, nor is an empty object."""
+    points, edges = two_strips()
+    ends = np.array([[0.0, 0.0], [1.0, 0.0]])
+    assert not depth.pin_reaches(points, edges, 5, 0.25, ends, near=0.1)
+    assert depth.pin_reaches(points, edges, 5, 0.25, np.vstack([ends, [0.62, 0.01]]), near=0.1)
+    assert depth.pin_reaches(points, edges, 5, 0.25, ends, near=0.4)
+    assert not depth.pin_reaches(points, edges, 5, 0.25, np.zeros((0, 2)), near=0.1)
+
+
 def test_pins_add_up_where_their_extents_meet_and_sign_sets_front_or_back():
     points, edges = two_strips()
     weights = depth.pin_weights(points, edges, pins=[3, 6], extents=[0.5, 0.5])
