@@ -20,7 +20,7 @@ from mathutils import Matrix
 
 from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane, transform_points
-from ...solver.rigging.silhouette import image_cutout, map_by_triangles, specks
+from ...solver.rigging.silhouette import image_cutout, map_by_triangles, shown_frame, specks
 from .. import rig_format
 from ..rig_format import CUTOUT_ATTRIBUTES, CUTOUT_KEY
 from ..errors import RigError
@@ -201,6 +201,7 @@ def prepare(obj, settings):
     # through the same triangles, so a quad that is no parallelogram shows the same texels.
     loop_triangles = _loop_triangles(quad)
     reader = _alpha_reader(node)
+    shown = None  # what the plane shows of its picture, which the cut-out covers within
     if reader is None:
         # Nothing reads the alpha: the plane renders whole, so is it rigged (its pixels unread:
         # a 4,096-pixel square took 2.3 s to read and trace into its own frame).
@@ -208,12 +209,12 @@ def prepare(obj, settings):
         notes = [f"nothing reads the alpha of its picture '{node.image.name}', so the whole plane is rigged, as "
                  "it renders (wire the picture's Alpha to the shader's to cut the plane to the picture)"]
     else:
-        rings, notes = _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triangles)
+        rings, shown, notes = _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triangles)
         notes.extend(_reading_notes(obj, node, changed))
         if not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
             notes.append("its UVs show the picture more than once: only the copy in the UV square is cut out")
     try:
-        graph = outline_graph(rings, settings.density)
+        graph = outline_graph(rings, settings.density, cover_within=shown)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     vertices = plane.to_3d(graph.points).astype(np.float32)  # float32 as Blender stores them
@@ -246,8 +247,9 @@ def prepare(obj, settings):
 
 def _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triangles):
     """The rings (in the plane) of what the picture's alpha shows of ``node``'s picture through
-    the quad's UVs (``uv`` at its loops ``loop_points``, (4, 2) each), and what Bind says about
-    them ([str]); ``reader`` is :func:`_alpha_reader`'s answer."""
+    the quad's UVs (``uv`` at its loops ``loop_points``, (4, 2) each), the rings of the part of
+    the picture the quad shows, and what Bind says about them ([str]); ``reader`` is
+    :func:`_alpha_reader`'s answer."""
     alpha, advice = _alpha(obj, node)
     height, width = alpha.shape
     if width * height < 2:
@@ -255,20 +257,21 @@ def _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triang
     window = uv * (width, height)
     notes = [advice, *_cutout_notes(node, reader, alpha, window)]
 
-    def to_plane(uv_points):
-        return map_by_triangles(uv, loop_points, loop_triangles, uv_points)
+    def to_plane(rings):  # rings in pixels
+        return [map_by_triangles(uv, loop_points, loop_triangles, ring / (width, height)) for ring in rings]
 
     try:
-        to_plane(uv)  # refuses a picture map that covers no area
+        to_plane([window])  # refuses a picture map that covers no area
     except ValueError:
         raise RigError(f"'{obj.name}': its UV map '{picture_layer.name}', which shows its picture, shows none of "
                        "it (its corners' UVs lie on one line): unwrap the plane again") from None
     # Only what the plane shows: its UVs may frame part of the picture (a sprite sheet's).
     margin = _FILTER_MARGIN.get(node.interpolation, max(_FILTER_MARGIN.values()))
     try:
-        return [to_plane(ring / (width, height)) for ring in image_cutout(alpha, margin=margin, window=window)], notes
+        rings = image_cutout(alpha, margin=margin, window=window)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
+    return to_plane(rings), to_plane(shown_frame(width, height, window)), notes
 
 
 def _loop_triangles(quad):

@@ -15,7 +15,7 @@ from scipy import ndimage
 from ..shapes import polygonal_part, geometry_rings, shape_geometry
 from ..trace import coverage, trace_silhouette
 
-__all__ = ["stroke_silhouette", "image_cutout", "specks", "map_by_triangles"]
+__all__ = ["stroke_silhouette", "image_cutout", "shown_frame", "specks", "map_by_triangles"]
 
 
 def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, tolerance=None, areas=()):
@@ -133,16 +133,26 @@ def image_cutout(image, margin=1.0, level=1.0 / 255.0, tolerance=0.5, window=Non
     height, width = alpha.shape
     geometry = shape_geometry(rings)
     grown = geometry.buffer(margin, join_style="mitre", mitre_limit=2.0)
-    frame = shapely.box(0, 0, width, height)
-    if window is not None:
-        frame = shapely.intersection(frame, shapely.Polygon(np.asarray(window, dtype=np.float64)).buffer(0))
-    clipped = polygonal_part(shapely.intersection(grown, frame))
+    clipped = polygonal_part(shapely.intersection(grown, _frame(width, height, window)))
     if clipped.is_empty:
         raise ValueError("no visible pixel of the picture lies in the part its UVs show")
     simplified = shapely.simplify(clipped, 0.25 * margin, preserve_topology=True)
     if not simplified.is_empty and simplified.is_valid:
         clipped = simplified
     return [ring for island in geometry_rings(clipped) for ring in island]
+
+
+def shown_frame(width, height, window=None):
+    """What a plane shows of a ``width`` x ``height`` picture: its frame clipped to ``window``
+    (see :func:`image_cutout`), as rings in pixel units; a cut-out stays inside it."""
+    return [ring for island in geometry_rings(_frame(width, height, window)) for ring in island]
+
+
+def _frame(width, height, window):
+    frame = shapely.box(0, 0, width, height)
+    if window is None:
+        return frame
+    return polygonal_part(shapely.intersection(frame, shapely.Polygon(np.asarray(window, dtype=np.float64)).buffer(0)))
 
 
 def _without_dust(alpha, level):

@@ -128,6 +128,34 @@ def test_image_cutout_covers_every_visible_pixel_and_stays_in_the_picture():
     assert len(centres) > 0
 
 
+@pytest.mark.parametrize("window", [None, [(0.0, 0.0), (700.0, 0.0), (700.0, 600.0), (0.0, 600.0)]])
+def test_a_pictures_graph_covers_every_visible_pixel_within_what_the_plane_shows(window):
+    """A cut-out's graph is the mesh that shows the picture: simplified to a coarse graph's
+    spacing (a detail of 1.6 pixels here, 3 at 4,096), it lost a 1-pixel line, a 2 x 2 dot and
+    slivers of the outline's pixels. Covering, it keeps them all, and stays in the picture and
+    in the window the plane's UVs show."""
+    from solver.outline import outline_graph
+    from solver.rigging.silhouette import shown_frame
+
+    yy, xx = np.mgrid[:512, :768]
+    visible = (xx - 300) ** 2 + (yy - 260) ** 2 < 200 ** 2
+    visible[40, 100:700] = True    # a whisker, one pixel wide, crossing the window's edge
+    visible[500:502, 600:602] = True
+    visible[200:300, 0:20] = True  # at the picture's edge
+    rings = image_cutout(visible.astype(np.float32), window=window)
+    frame = shown_frame(768, 512, window)
+    graph = outline_graph(rings, 20, cover_within=frame)
+    shape = shape_geometry([graph.points[loop] for loop in graph.boundary_loops]).buffer(1e-6)
+    shown = visible & ((xx < 699) & (yy < 599) if window else True)
+    pixels = shapely.box(xx[shown], yy[shown], xx[shown] + 1, yy[shown] + 1)
+    assert shapely.contains(shape, pixels).all()
+    assert shape_geometry(frame).buffer(1e-6).contains(shape)
+    assert graph.n < 200  # as coarse as simplifying alone makes it (87 points)
+    simplified = outline_graph(rings, 20)
+    alone = shape_geometry([simplified.points[loop] for loop in simplified.boundary_loops]).buffer(1e-6)
+    assert not shapely.contains(alone, pixels).all()  # what simplifying alone loses
+
+
 def test_image_cutout_leaves_out_dust_nobody_sees_and_keeps_a_single_opaque_pixel():
     rng = np.random.default_rng(0)
     image = np.zeros((120, 120, 4), np.float32)
