@@ -218,17 +218,21 @@ def prepare(obj, settings):
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     vertices = plane.to_3d(graph.points).astype(np.float32)  # float32 as Blender stores them
+    # Faces the way the quad does (QA: a plane mirrored and applied faces away from the plane's
+    # normal, and its cut-out turned to it vanished under backface culling).
+    triangles = graph.triangles if _winding(loop_points[loop_triangles]) == _winding(graph.points[graph.triangles]) \
+        else graph.triangles[:, ::-1]
     # Every UV map (a second one a shader reads, a scratch one) goes onto the cut-out, so each
     # still shows what it showed on the quad.
     uv_maps = [(layer.name, map_by_triangles(loop_points, _loop_uvs(layer), loop_triangles,
-                                             graph.points)[graph.triangles].astype(np.float32))
+                                             graph.points)[triangles].astype(np.float32))
                for layer in quad.uv_layers]
     active_uv = quad.uv_layers.active_index
     material_index = _material_index(obj)
     render_uv = next(i for i, layer in enumerate(quad.uv_layers) if layer.active_render)
 
     def commit(o):
-        cutout = _new_cutout(quad, vertices, graph.triangles, uv_maps, active_uv, render_uv, material_index)
+        cutout = _new_cutout(quad, vertices, triangles, uv_maps, active_uv, render_uv, material_index)
         # Added to the cut-outs the quad is kept for, which other planes bound on it (linked
         # duplicates bound one by one) keep: a copy's cut-out has another name, and needs a quad
         # of its own (own_quad).
@@ -272,6 +276,12 @@ def _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triang
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     return to_plane(rings), to_plane(shown_frame(width, height, window)), notes
+
+
+def _winding(corners):
+    """Whether triangles' ``corners`` (t, 3, 2) turn counter-clockwise, taken together."""
+    first, second = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    return bool(np.sum(first[:, 0] * second[:, 1] - first[:, 1] * second[:, 0]) > 0.0)
 
 
 def _loop_triangles(quad):

@@ -57,6 +57,23 @@ def test_a_coarse_cutout_still_shows_every_visible_pixel(addon, tmp_path):
     assert shapely.contains(shape, boxes).all(), int((~shapely.contains(shape, boxes)).sum())
 
 
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_the_cutout_faces_the_way_the_quad_faces(addon, tmp_path, mirrored):
+    """A plane mirrored (S X -1, Apply Scale) keeps its face turned the other way; its cut-out
+    faced the plane's normal whatever the quad did, and vanished under backface culling (QA:
+    257 pixels before Bind, 0 after)."""
+    obj, _ = import_picture(tmp_path)
+    if mirrored:
+        checks.select_only(obj)
+        obj.scale.x = -1.0
+        assert bpy.ops.object.transform_apply(location=False, rotation=False, scale=True) == {"FINISHED"}
+    facing = np.array(obj.data.polygons[0].normal)
+    bind(obj)
+    normals = np.empty(3 * len(obj.data.polygons), np.float32)
+    obj.data.polygons.foreach_get("normal", normals)
+    assert np.all(normals.reshape(-1, 3) @ facing > 0.99)
+
+
 def test_image_plane_becomes_a_cutout_that_maps_the_image_exactly(addon, tmp_path):
     obj, pixels = import_picture(tmp_path)
     obj.rotation_euler = (1.2, 0.0, 0.3)  # Blender's importer stands pictures up; any angle works
