@@ -211,7 +211,8 @@ def prepare(obj, settings):
     else:
         rings, shown, notes = _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triangles)
         notes.extend(_reading_notes(obj, node, changed))
-        if not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
+        # Clip and Extend show the picture once, however far the UVs reach (QA: a false warning).
+        if node.extension in {"REPEAT", "MIRROR"} and not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
             notes.append("its UVs show the picture more than once: only the copy in the UV square is cut out")
     try:
         graph = outline_graph(rings, settings.density, cover_within=shown)

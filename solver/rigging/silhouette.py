@@ -126,9 +126,14 @@ def image_cutout(image, margin=1.0, level=1.0 / 255.0, tolerance=0.5, window=Non
     Raises
     ------
     ValueError
-        No visible pixel (see :func:`solver.trace_silhouette`), or none inside ``window``.
+        No visible pixel (see :func:`solver.trace_silhouette`), none but specks, or none inside
+        ``window``.
     """
-    alpha = _without_dust(coverage(image), level)
+    visible = coverage(image)
+    alpha = _without_dust(visible, level)
+    if not np.any(alpha >= level) and np.any(visible >= level):
+        raise ValueError("its only visible pixels are specks, each group holding less ink than one opaque pixel "
+                         "(a soft brush's dust), which a cut-out leaves out")
     rings = trace_silhouette(alpha, level=level, tolerance=tolerance, min_area=1.0)
     height, width = alpha.shape
     geometry = shape_geometry(rings)

@@ -254,14 +254,19 @@ def test_the_cut_out_covers_what_the_pictures_filter_shows(addon, tmp_path, inte
                                f"{alpha[faint][clipped].max():.4f}")
 
 
-def test_bind_says_when_the_uvs_repeat_the_picture(addon, tmp_path, capsys):
+@pytest.mark.parametrize("extension", ["REPEAT", "MIRROR", "CLIP", "EXTEND"])
+def test_bind_says_when_the_uvs_repeat_the_picture(addon, tmp_path, capsys, extension):
+    """UVs past the square show the picture again where it repeats or mirrors; clipped or
+    extended, it shows once, and Bind said it repeated (QA)."""
     obj, _ = import_picture(tmp_path)
+    next(n for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE").extension = extension
     mesh = obj.data
     uv = np.empty(len(mesh.loops) * 2, np.float32)
     mesh.uv_layers.active.data.foreach_get("uv", uv)
     mesh.uv_layers.active.data.foreach_set("uv", 2.0 * uv)  # the picture twice each way
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
-    assert "its UVs show the picture more than once: only the copy in the UV square is cut out" in capsys.readouterr().out
+    said = "its UVs show the picture more than once: only the copy in the UV square is cut out"
+    assert (said in capsys.readouterr().out) == (extension in {"REPEAT", "MIRROR"})
 
 
 def test_a_plane_whose_alpha_nothing_reads_is_rigged_whole_however_its_uvs_repeat_the_picture(addon, tmp_path,

@@ -156,6 +156,16 @@ def test_a_pictures_graph_covers_every_visible_pixel_within_what_the_plane_shows
     assert not shapely.contains(alone, pixels).all()  # what simplifying alone loses
 
 
+def test_a_picture_of_nothing_but_specks_is_refused_as_such():
+    """Faint specks alone (alpha 0.5 and 0.3) were refused as if the picture were transparent."""
+    image = np.zeros((20, 30), np.float32)
+    image[5, 5], image[12, 20] = 0.5, 0.3
+    with pytest.raises(ValueError, match="its only visible pixels are specks"):
+        image_cutout(image)
+    with pytest.raises(ValueError, match="is the picture fully transparent"):
+        image_cutout(np.zeros((20, 30), np.float32))
+
+
 def test_image_cutout_leaves_out_dust_nobody_sees_and_keeps_a_single_opaque_pixel():
     rng = np.random.default_rng(0)
     image = np.zeros((120, 120, 4), np.float32)
