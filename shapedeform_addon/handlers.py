@@ -125,6 +125,7 @@ def on_depsgraph_update(scene, depsgraph):
         for obj in rig_format.bound_objects():  # an object moved between collections, perhaps a handle
             if rig_format.is_owner(obj):
                 handles.keep_in_collection(obj)
+        _lock_scenes()  # perhaps a character linked, overridden, appended or instanced
     duplicates.keep_islands_apart()  # a character appended twice
     for update in depsgraph.updates:
         if not isinstance(update.id, bpy.types.Object):
@@ -291,10 +292,19 @@ def sync_scene():
         if obj.shapedeform.is_bound or rig_format.watches_handles(obj):
             rig_format.keep_handles_evaluated(obj)  # a file from before the driver, the extension enabled again
     duplicates.keep_islands_apart()
+    _lock_scenes()
     scene = bpy.context.scene
     if scene is not None:
         depsgraph = bpy.context.evaluated_depsgraph_get()
         _pose([o for o in rig_format.owners(scene, depsgraph) if o.shapedeform.handles], depsgraph)
+
+
+def _lock_scenes():
+    """Lock Interface in the scenes that show rigs they did not bind (:func:`rig_format.lock_scenes_showing_rigs`),
+    saying so on the console, as no operator runs to report it."""
+    for scene in rig_format.lock_scenes_showing_rigs():
+        print(f"Shape Deform: turned Render > Lock Interface on in scene '{scene.name}', which shows rigs: frame "
+              "handlers pose them while a render reads the scene")
 
 
 _HANDLERS = (

@@ -349,6 +349,16 @@ def lock_interface(scene):
     return True
 
 
+def lock_scenes_showing_rigs():
+    """:func:`lock_interface` in each local scene that shows a rig (:func:`owners`) and was never
+    locked for one: a shot that links a character with an override, appends it, or shows it by
+    a Collection Instance binds nothing itself (QA: its F12 renders ran unlocked). A lock turned
+    off after it was turned on for a rig stays off: the mark says so. Returns the scenes locked."""
+    return [scene for scene in bpy.data.scenes
+            if scene.library is None and not scene.render.use_lock_interface and INTERFACE_LOCKED not in scene
+            and owners(scene) and lock_interface(scene)]
+
+
 def unlock_interface(scene):
     """Turn ``scene``'s Lock Interface off again where :func:`lock_interface` turned it on and
     the scene shows no rig any more (:func:`owners`), and drop the mark."""
@@ -858,6 +868,8 @@ def _evaluated_owners(scene, depsgraph, known):
         if view_layer is None or scene.view_layers.get(view_layer.name) != view_layer:
             return []
         depsgraph = view_layer.depsgraph
+        if depsgraph is None:  # not evaluated yet: a file being opened
+            return []
     found = []
     for obj in bound_objects():
         if obj not in known and obj.shapedeform.is_bound and obj.evaluated_get(depsgraph).is_evaluated:

@@ -1054,6 +1054,35 @@ def overridden_character(tmp_path):
     return library, override_in_a_new_shot(library)
 
 
+def test_a_shot_that_shows_a_rig_it_did_not_bind_locks_the_interface(addon, tmp_path, capsys):
+    """Frame handlers pose a linked character's override during F12 renders, but only Bind
+    turned Render > Lock Interface on, in the character's file (QA: every shot ran unlocked).
+    A shot gets the lock when the character comes in (an override, an append) or the file is
+    opened, and says so; turned off after that, it stays off."""
+    marked = addon.shapedeform_addon.rig_format.INTERFACE_LOCKED
+    library, _ = overridden_character(tmp_path)
+    scene = bpy.context.scene
+    assert scene.render.use_lock_interface and scene.get(marked)
+    assert f"turned Render > Lock Interface on in scene '{scene.name}'" in capsys.readouterr().out
+    shot = str(tmp_path / "shot.blend")
+    scene.render.use_lock_interface = False
+    del scene[marked]  # a shot saved by an earlier version
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    assert bpy.context.scene.render.use_lock_interface
+    bpy.context.scene.render.use_lock_interface = False  # the user's own choice
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    assert not bpy.context.scene.render.use_lock_interface
+
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    with bpy.data.libraries.load(library, link=False) as (_, appended):
+        appended.collections = ["Character"]
+    bpy.context.scene.collection.children.link(appended.collections[0])
+    bpy.context.view_layer.update()
+    assert bpy.context.scene.render.use_lock_interface
+
+
 def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon, tmp_path, quiet):
     """The usual way to animate a linked character: link its collection into a shot, make a
     library override, move and key its handles, bake on the farm. The rig poses (its cage takes
