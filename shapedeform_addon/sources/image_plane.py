@@ -192,6 +192,8 @@ def prepare(obj, settings):
     quad.loops.foreach_get("vertex_index", loop_vertices)
     picture_layer, changed = _picture_uv_layer(quad, node)
     uv = _loop_uvs(picture_layer)
+    if node.extension == "REPEAT":  # a whole tile over shows the same picture (QA: refused)
+        uv = uv - np.floor(uv.min(axis=0) + 1e-6)
     try:
         plane = fit_plane(corners)
     except ValueError as err:

@@ -254,6 +254,31 @@ def test_the_cut_out_covers_what_the_pictures_filter_shows(addon, tmp_path, inte
                                f"{alpha[faint][clipped].max():.4f}")
 
 
+@pytest.mark.parametrize("moved", ["a tile over", "mirrored"])
+def test_a_repeating_picture_is_cut_out_a_whole_tile_over(addon, tmp_path, moved):
+    """With Extension Repeat, UVs moved a whole tile (or mirrored, u to -u) show the same
+    picture (mirrored), and Bind refused: 'no visible pixel ... in the part its UVs show'. The
+    cut-out is that of the picture the UVs show, as where they were."""
+    reference, _ = import_picture(tmp_path)
+    bind(reference)
+    expected = checks.mesh_points(reference)
+    obj, _ = import_picture(tmp_path)
+    next(n for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE").extension = "REPEAT"
+    layer = obj.data.uv_layers.active
+    uv = np.empty(2 * len(layer.data), np.float32)
+    layer.data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2) + (1.0, -2.0) if moved == "a tile over" else uv.reshape(-1, 2) * (-1.0, 1.0)
+    layer.data.foreach_set("uv", uv.ravel())
+    bind(obj)
+    shown = checks.mesh_points(obj)
+    if moved == "a tile over":
+        np.testing.assert_allclose(shown, expected, atol=1e-6)
+    else:  # the plane shows the picture mirrored about its centre: so is the cut-out's extent
+        shown[:, 0] *= -1.0
+        np.testing.assert_allclose([shown.min(axis=0), shown.max(axis=0)],
+                                   [expected.min(axis=0), expected.max(axis=0)], atol=0.01)
+
+
 @pytest.mark.parametrize("extension", ["REPEAT", "MIRROR", "CLIP", "EXTEND"])
 def test_bind_says_when_the_uvs_repeat_the_picture(addon, tmp_path, capsys, extension):
     """UVs past the square show the picture again where it repeats or mirrors; clipped or
