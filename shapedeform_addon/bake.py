@@ -467,7 +467,7 @@ def _targets(context):
 
 
 class SHAPEDEFORM_OT_bake(bpy.types.Operator):
-    """Bake the selected rigs' deformation into keyframes that play without the extension"""
+    """Bake the deformation of the selected rigs and the active one into keyframes that play without the extension"""
 
     bl_idname = "shapedeform.bake"
     bl_label = "Bake Deformation"
@@ -579,7 +579,7 @@ class SHAPEDEFORM_OT_bake(bpy.types.Operator):
 
 
 class SHAPEDEFORM_OT_clear_bake(bpy.types.Operator):
-    """Remove the keys a bake made on the selected rigs, so the live rig shows again"""
+    """Remove the keys a bake made on the selected rigs and the active one, so the live rig shows again"""
 
     bl_idname = "shapedeform.clear_bake"
     bl_label = "Clear Bake"
