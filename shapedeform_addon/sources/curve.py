@@ -98,9 +98,11 @@ def prepare(obj, settings):
 def path_users(obj):
     """What needs the Path Animation of curve ``obj``'s data, as phrases (empty when nothing).
 
-    Objects parented to an object with this data ride its path, a Guide force field on one
-    follows it, an animated Evaluation Time is meant to move something along it, and data of a
-    library cannot be changed here. The rigs' own handles and cages are not counted.
+    Objects parented to an object with this data ride its path, as do objects and bones with a
+    Follow Path or Clamp To constraint aimed at one (QA: without it they jumped to the curve's
+    origin), a Guide force field on one follows it, an animated Evaluation Time is meant to move
+    something along it, and data of a library cannot be changed here. The rigs' own handles and
+    cages are not counted.
     """
     data = obj.data
     if data.library is not None:
@@ -108,11 +110,23 @@ def path_users(obj):
     sharing = [o for o in bpy.data.objects if o.data == data]
     riders = [child.name for o in sharing for child in o.children
               if child.parent_type == "OBJECT" and child.shapedeform.rig is None]
+    riders += [o.name for o in bpy.data.objects if o.name not in riders and o.shapedeform.rig is None
+               and any(c.type in PATH_CONSTRAINTS and c.target in sharing for c in _constraints(o))]
     guides = [o.name for o in sharing if o.field is not None and o.field.type == "GUIDE"]
     found = [f"{', '.join(map(repr, riders))} {by_count(len(riders), 'rides', 'ride')} the path"] if riders else []
     found += [f"a Guide force field on {', '.join(map(repr, guides))}"] if guides else []
     found += ["the curve's Evaluation Time is animated"] if compat.is_animated(data, "eval_time") else []
     return found
+
+
+# Constraints that place their owner along a curve's path, which Path Animation makes.
+PATH_CONSTRAINTS = {"FOLLOW_PATH", "CLAMP_TO"}
+
+
+def _constraints(obj):
+    """``obj``'s constraints and its bones'."""
+    bones = obj.pose.bones if obj.pose is not None else ()
+    return [*obj.constraints, *(c for bone in bones for c in bone.constraints)]
 
 
 def prepare_splines(obj, curve, settings):

@@ -309,25 +309,33 @@ def test_path_animation_turned_on_after_binding_is_reported(addon, quiet):
     assert np.linalg.norm(checks.evaluated_curve_points(obj) - [1.0, 0.6, 0.0], axis=1).min() < 0.02
 
 
-@pytest.mark.parametrize("use", ["rider", "keyed"])
+@pytest.mark.parametrize("use", ["rider", "keyed", "FOLLOW_PATH", "CLAMP_TO"])
 def test_a_curve_whose_path_is_used_keeps_path_animation(addon, use, capfd, quiet):
-    """An object riding the curve's path (its child), or a keyed Evaluation Time, needs Path
-    Animation: Bind keeps it on and says why and what not to do, the handles follow the curve by
-    a Child Of constraint (moving the curve moves the posed shape with them), and the rider
-    stays where it was."""
+    """An object riding the curve's path (its child, or by a Follow Path or Clamp To constraint,
+    which Bind turned Path Animation off under: QA, the rider jumped to the curve's origin), or a
+    keyed Evaluation Time, needs Path Animation: Bind keeps it on and says why and what not to
+    do, the handles follow the curve by a Child Of constraint (moving the curve moves the posed
+    shape with them), and the rider stays where it was."""
     bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)
     obj = bpy.context.active_object
     rider = bpy.data.objects.new("Rider", None)
     bpy.context.scene.collection.objects.link(rider)
     if use == "rider":
         rider.parent = obj
-    else:
+    elif use == "keyed":
         obj.data.keyframe_insert("eval_time", frame=1)
+    else:
+        constraint = rider.constraints.new(use)
+        constraint.target = obj
+        if use == "FOLLOW_PATH":
+            constraint.use_fixed_location, constraint.offset_factor = True, 0.25
+        else:
+            rider.location = (0.9, -0.9, 0.0)
     bpy.context.view_layer.update()
     riding = rider.matrix_world.copy()
     capfd.readouterr()
     _, handle = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
-    why = "'Rider' rides the path" if use == "rider" else "the curve's Evaluation Time is animated"
+    why = "the curve's Evaluation Time is animated" if use == "keyed" else "'Rider' rides the path"
     assert f"Path Animation stays on ({why})" in capfd.readouterr().out
     assert obj.data.use_path
     assert handle.parent is None and handle.constraints[0].type == "CHILD_OF"
