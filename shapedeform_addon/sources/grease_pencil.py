@@ -215,13 +215,24 @@ def _numbered_from(strokes):
 
 def _hidden_layers_advice(layers, settings):
     """Advice on hidden layers rigged because no layers were named ("" when none is)."""
-    hidden = [layer.name for layer in layers if layer.hide] if not settings.layers.strip() else []
+    hidden = [layer.name for layer in layers if _hidden(layer)] if not settings.layers.strip() else []
     if not hidden:
         return ""
     count = len(hidden)
     return (f"the hidden {by_count(count, 'layer', 'layers')} {', '.join(map(repr, hidden))} "
             f"{by_count(count, 'is', 'are')} part of the shape: name the layers to rig in Layers to leave "
             f"{by_count(count, 'it', 'them')} out")
+
+
+def _hidden(layer):
+    """Whether ``layer`` is hidden, by itself or by a layer group it is in (QA: a layer hidden
+    by its group was rigged without a word)."""
+    group = layer
+    while group is not None:
+        if group.hide:
+            return True
+        group = group.parent_group
+    return False
 
 
 def _transformed_layers_advice(obj, layers):

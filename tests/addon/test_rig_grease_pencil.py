@@ -204,6 +204,15 @@ def test_a_layer_named_with_a_comma_can_be_chosen_and_hidden_layers_rigged_are_n
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert "the hidden layer 'Fills' is part of the shape" in capsys.readouterr().out
 
+    bpy.ops.object.grease_pencil_add(type="MONKEY")  # hidden by a hidden group it is in (QA: no word)
+    grouped = bpy.context.active_object
+    outer = grouped.data.layer_groups.new("Reference")
+    inner = grouped.data.layer_groups.new("Inner", parent_group=outer)
+    grouped.data.layers.move_to_layer_group(grouped.data.layers["Fills"], inner)
+    outer.hide = True
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert "the hidden layer 'Fills' is part of the shape" in capsys.readouterr().out
+
 
 def test_a_drawing_far_from_its_origin_stays_put_at_bind(addon):
     """A stroke 2.6 wide drawn 1e6 from its object's origin (float32 steps there: 0.0625):
