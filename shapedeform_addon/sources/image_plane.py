@@ -29,7 +29,6 @@ from .prepared import Prepared
 
 # Shared with meshes once the cut-out is in place.
 selected, selected_islands = mesh_source.selected, mesh_source.selected_islands
-overlap_pin_notes = mesh_source.overlap_pin_notes  # a plane rigged whole is one quad
 
 
 def _material_index(obj):
@@ -193,7 +192,7 @@ def prepare(obj, settings):
     picture_layer, changed = _picture_uv_layer(quad, node)
     uv = _loop_uvs(picture_layer)
     if node.extension == "REPEAT":  # a whole tile over shows the same picture (QA: refused)
-        uv = uv - np.floor(uv.min(axis=0) + 1e-6)
+        uv = uv - np.floor(uv.mean(axis=0))  # the tile holding most of the plane: UVs a hair past it stay
     try:
         plane = fit_plane(corners)
     except ValueError as err:

@@ -254,7 +254,7 @@ def test_the_cut_out_covers_what_the_pictures_filter_shows(addon, tmp_path, inte
                                f"{alpha[faint][clipped].max():.4f}")
 
 
-@pytest.mark.parametrize("moved", ["a tile over", "mirrored"])
+@pytest.mark.parametrize("moved", ["a tile over", "mirrored", "a hair past 0"])
 def test_a_repeating_picture_is_cut_out_a_whole_tile_over(addon, tmp_path, moved):
     """With Extension Repeat, UVs moved a whole tile (or mirrored, u to -u) show the same
     picture (mirrored), and Bind refused: 'no visible pixel ... in the part its UVs show'. The
@@ -267,12 +267,18 @@ def test_a_repeating_picture_is_cut_out_a_whole_tile_over(addon, tmp_path, moved
     layer = obj.data.uv_layers.active
     uv = np.empty(2 * len(layer.data), np.float32)
     layer.data.foreach_get("uv", uv)
-    uv = uv.reshape(-1, 2) + (1.0, -2.0) if moved == "a tile over" else uv.reshape(-1, 2) * (-1.0, 1.0)
+    uv = uv.reshape(-1, 2)
+    if moved == "a tile over":
+        uv = uv + (1.0, -2.0)
+    elif moved == "mirrored":
+        uv = uv * (-1.0, 1.0)
+    else:  # float32 noise of UVs turned or scaled (review: the window jumped a whole tile)
+        uv = np.where(uv < 0.5, uv - 5e-6, uv)
     layer.data.foreach_set("uv", uv.ravel())
     bind(obj)
     shown = checks.mesh_points(obj)
-    if moved == "a tile over":
-        np.testing.assert_allclose(shown, expected, atol=1e-6)
+    if moved != "mirrored":
+        np.testing.assert_allclose(shown, expected, atol=1e-4)
     else:  # the plane shows the picture mirrored about its centre: so is the cut-out's extent
         shown[:, 0] *= -1.0
         np.testing.assert_allclose([shown.min(axis=0), shown.max(axis=0)],
