@@ -202,7 +202,8 @@ _checked = {"bound": None}
 def keep_islands_apart():
     """Where two rigs of different meshes number their islands from the same first number,
     number the later one's apart (:func:`number_islands_apart`; a library's rig is left as it
-    is, and the other one is numbered apart then).
+    is, and the other one is numbered apart then). A rig numbered past ``ISLANDS_END`` (by an
+    older version, where subdivision put points a number off) is numbered anew too.
 
     A character appended twice, or pasted (Ctrl+V appends from a file), comes with copies of
     its meshes whose numbers are those of the original: joining one copy into the other made
@@ -218,6 +219,8 @@ def keep_islands_apart():
         first = rig_format.first_island(obj.shapedeform.cage.data)
         if not first:  # numbered from 1 by an older version
             continue
+        if first >= rig_format.ISLANDS_END and number_islands_apart(obj):  # numbered by an older version
+            first = rig_format.first_island(obj.shapedeform.cage.data)
         other = numbered.setdefault(first, obj)
         if other is obj or other.data == obj.data or number_islands_apart(obj):
             continue

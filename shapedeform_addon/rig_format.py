@@ -89,7 +89,7 @@ HANDLE_OFFSETS = "offsets"  # on a handle's item: those points in its frame when
 PIN_POINT = "point"  # on a pin's handle item: the graph point it is bound to
 CAGE_STAMP = "shapedeform_cage"  # on a cage's mesh: the owner's cage object it belongs to
 PATH_TURNED_OFF = "shapedeform_path_off"  # on a curve's data: Bind turned its Path Animation off
-INTERFACE_LOCKED = "shapedeform_lock_interface"  # on a scene: Bind turned its Lock Interface on
+INTERFACE_LOCKED = "shapedeform_lock_interface"  # on a scene showing rigs: True where we turned its lock on
 UNSETTLED = "shapedeform_unsettled"  # on a cage's mesh: its pose is a Viewport solve that stopped short
 # On a rig's owner and followers: the setting a driver reading its handles' transforms and its
 # pins' keyable amounts writes (:func:`keep_handles_evaluated`); inside the extension's settings,
@@ -341,8 +341,11 @@ def turn_path_back_on(curve):
 def lock_interface(scene):
     """Turn Render > Lock Interface on in ``scene``, whose frame handlers pose rigs while a
     render reads the scene from another thread (saved in the file, so farm and F12 renders are
-    safe), marking that Bind did; a lock the user turned on is left theirs. True when it did."""
+    safe), marking that it did (:data:`INTERFACE_LOCKED` True); a lock the user turned on is left
+    theirs, and marked so (False). True when it turned the lock on."""
     if scene.render.use_lock_interface:
+        if INTERFACE_LOCKED not in scene:
+            scene[INTERFACE_LOCKED] = False
         return False
     scene.render.use_lock_interface = True
     scene[INTERFACE_LOCKED] = True
@@ -350,21 +353,23 @@ def lock_interface(scene):
 
 
 def lock_scenes_showing_rigs():
-    """:func:`lock_interface` in each local scene that shows a rig (:func:`owners`) and was never
-    locked for one: a shot that links a character with an override, appends it, or shows it by
-    a Collection Instance binds nothing itself (QA: its F12 renders ran unlocked). A lock turned
-    off after it was turned on for a rig stays off: the mark says so. Returns the scenes locked."""
+    """:func:`lock_interface` in each local scene that shows a rig (:func:`owners`) and bears no
+    mark: a shot that links a character with an override, appends it, or shows it by a
+    Collection Instance binds nothing itself (QA: its F12 renders ran unlocked). A marked scene
+    was seen before: a lock turned off since stays off. Returns the scenes it turned the lock on in."""
+    if not bound_objects():
+        return []
     return [scene for scene in bpy.data.scenes
-            if scene.library is None and not scene.render.use_lock_interface and INTERFACE_LOCKED not in scene
-            and owners(scene) and lock_interface(scene)]
+            if scene.library is None and INTERFACE_LOCKED not in scene and owners(scene) and lock_interface(scene)]
 
 
 def unlock_interface(scene):
     """Turn ``scene``'s Lock Interface off again where :func:`lock_interface` turned it on and
     the scene shows no rig any more (:func:`owners`), and drop the mark."""
-    if scene.library is None and scene.get(INTERFACE_LOCKED) and not owners(scene):
+    if scene.library is None and INTERFACE_LOCKED in scene and not owners(scene):
+        if scene[INTERFACE_LOCKED]:
+            scene.render.use_lock_interface = False
         del scene[INTERFACE_LOCKED]
-        scene.render.use_lock_interface = False
 
 
 def follows_by_constraint(obj):
@@ -548,7 +553,8 @@ def bake_key_times(count):
 # rigged puppet joined into another keeps numbers that are none of that rig's. Every number stays
 # under ISLANDS_END = 2**20: subdivision (Refine, a Subdivision Surface before the rig) mixes
 # integer attributes in single precision, which put points of numbers near 2**23 a number off
-# (QA: a body's points flew with its arm); 2**20 leaves a margin of 8 (exact up to 2**22, measured).
+# (QA: a body's points flew with its arm); measured exact below 2**22 at three levels, so 2**20 leaves
+# a margin of 4.
 ISLANDS_PER_RIG = 4096
 ISLANDS_END = 2**20
 

@@ -225,9 +225,14 @@ def _islands(graph, data):
 def overlap_pin_notes(obj, rig, point, extent):
     """A pin lifts the mesh's own vertices: on a low-poly mesh (a quad per part) all of them may
     lie beyond its reach, unless the modifier's Refine cuts the faces first (QA: a pin on a quad
-    arm's middle left the arm in front)."""
+    arm's middle left the arm in front). Said only where the mesh's own vertices are what the
+    rig gets: no modifier before it (a Subdivision Surface's points may be reached), not in
+    Edit Mode (the mesh's data lags behind the edit)."""
     modifiers = rig_format.modifiers_of(obj)
-    if not modifiers or not len(obj.data.vertices):
+    if not modifiers or not len(obj.data.vertices) or obj.mode == "EDIT":
+        return []
+    before = list(obj.modifiers)[:list(obj.modifiers).index(modifiers[0])]
+    if any(m.show_viewport or m.show_render for m in before):
         return []
     if compat.modifier_input(modifiers[0], nodes.input_identifiers(modifiers[0].node_group)[nodes.REFINE_INPUT]):
         return []

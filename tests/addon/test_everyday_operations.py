@@ -1074,6 +1074,14 @@ def test_a_shot_that_shows_a_rig_it_did_not_bind_locks_the_interface(addon, tmp_
     bpy.ops.wm.save_as_mainfile(filepath=shot)
     bpy.ops.wm.open_mainfile(filepath=shot)
     assert not bpy.context.scene.render.use_lock_interface
+    bpy.context.scene.render.use_lock_interface = True  # the user's own lock, then turned off (review)
+    del bpy.context.scene[marked]
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    bpy.context.scene.render.use_lock_interface = False
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    assert not bpy.context.scene.render.use_lock_interface
 
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     with bpy.data.libraries.load(library, link=False) as (_, appended):

@@ -378,11 +378,22 @@ def test_an_overlap_pin_that_reaches_no_vertex_of_a_low_poly_mesh_says_so(addon,
     assert np.abs(checks.evaluated_vertices(obj)[:, 2]).max() < 1e-6  # nothing lifted
 
     modifier = shape_deform.rig_format.modifiers_of(obj)[0]
+    subdivision = obj.modifiers.new("Subdivision", "SUBSURF")  # cuts the faces before the rig
+    subdivision.subdivision_type, subdivision.levels = "SIMPLE", 3
+    checks.select_only(obj)
+    assert bpy.ops.object.modifier_move_to_index(modifier=subdivision.name, index=0) == {"FINISHED"}
+    bpy.context.view_layer.update()
+    assert checks.evaluated_vertices(obj)[:, 2].max() > 1e-3  # the first pin lifts the subdivided arm
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.add_handle(location=(1.4, 0.55, 0.0), kind="OVERLAP") == {"FINISHED"}
+    assert "reaches none" not in capsys.readouterr().out  # (review: it said so, wrongly)
+
+    obj.modifiers.remove(subdivision)
     refine = shape_deform.nodes.input_identifiers(modifier.node_group)[shape_deform.nodes.REFINE_INPUT]
     shape_deform.compat.set_modifier_input(modifier, refine, 3)
     obj.update_tag()
     bpy.context.view_layer.update()
-    assert checks.evaluated_vertices(obj)[:, 2].max() > 1e-3  # the first pin lifts the arm's refined points
+    assert checks.evaluated_vertices(obj)[:, 2].max() > 1e-3  # so does Refine
     checks.select_only(obj)
     assert bpy.ops.shapedeform.add_handle(location=(1.4, 0.55, 0.0), kind="OVERLAP") == {"FINISHED"}
     assert "reaches none" not in capsys.readouterr().out
@@ -595,15 +606,29 @@ def test_a_puppets_arm_stays_apart_from_its_body_after_edits(addon, edit, quiet)
         assert_arm_up_body_still(checks.evaluated_mesh_points(part), rest, is_arm)
 
 
-def test_a_refined_puppet_keeps_its_islands_whatever_first_number_its_rig_drew(addon, monkeypatch, quiet):
+@pytest.mark.parametrize("numbered_by", ["this version", "an older version"])
+def test_a_refined_puppet_keeps_its_islands_whatever_first_number_its_rig_drew(addon, monkeypatch, tmp_path,
+                                                                               numbered_by, quiet):
     """Refine's subdivision mixes the island numbers in single precision: from a first number
     drawn near 2**24, refined body points came out a number off, the arm's, and flew with it
     (QA: 22 of 81 body points, 3.5 units). Every number now stays under 2**20; here the rig
-    draws the largest first number it may."""
-    monkeypatch.setattr(addon.shapedeform_addon.rig_format.random, "choice", max)
+    draws the largest first number it may, or an older version's rig, numbered near 2**24, is
+    numbered anew when its file is opened."""
+    shape_deform = addon.shapedeform_addon
+    monkeypatch.setattr(shape_deform.rig_format.random, "choice", max)
     obj, body = puppet()
     pose_puppet(obj)
+    if numbered_by == "an older version":
+        for mesh in (obj.data, obj.shapedeform.cage.data):
+            islands = island_numbers_of(addon, mesh)
+            mesh.attributes[shape_deform.nodes.ISLAND].data.foreach_set("value", islands + 2**24 - 2**20)
+        assert island_numbers_of(addon, obj.data).max() > 2**23
+        path = str(tmp_path / "puppet.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=path)
+        bpy.ops.wm.open_mainfile(filepath=path)
+        obj = bpy.data.objects["Puppet"]
     assert 0 < island_numbers_of(addon, obj.data).max() < 2**20
+    assert set(island_numbers_of(addon, obj.data)) <= set(island_numbers_of(addon, obj.shapedeform.cage.data))
     checks.select_only(obj)
     [(part, rest, is_arm)] = _refined(addon, obj, body, level=3)
     bpy.context.view_layer.update()

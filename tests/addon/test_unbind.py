@@ -655,3 +655,4 @@ def test_the_last_unbind_of_a_scene_turns_lock_interface_off_again(addon):
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     unbind(first)
     assert scene.render.use_lock_interface
+    assert not any(key.startswith("shapedeform") for key in scene.keys())
