@@ -332,11 +332,8 @@ def assert_arm_up_body_still(shown, rest, is_arm):
     np.testing.assert_allclose(moved[is_arm], np.tile([0.0, 1.0], (int(is_arm.sum()), 1)), atol=1e-4)
 
 
-def test_a_low_poly_puppet_gets_a_graph_for_each_part(addon, quiet):
-    """A body quad and an arm quad over it, one mesh: Bind made the mesh its own graph (its
-    islands overlap), four points a part, so the arm took one handle and refused a second, with
-    advice (a higher Graph Density) that did not help. Each island now gets an outline graph of
-    its own, kept apart: the arm bends about a shoulder handle while the body stays put."""
+def quad_puppet():
+    """A low-poly puppet, bound: a body quad (1 x 2) and an arm quad over it (2.2 x 0.3), one mesh."""
     verts = [(-0.5, -1, 0), (0.5, -1, 0), (0.5, 1, 0), (-0.5, 1, 0), (0.3, 0.4, 0), (2.5, 0.4, 0), (2.5, 0.7, 0),
              (0.3, 0.7, 0)]
     mesh = bpy.data.meshes.new("Puppet")
@@ -345,6 +342,15 @@ def test_a_low_poly_puppet_gets_a_graph_for_each_part(addon, quiet):
     bpy.context.scene.collection.objects.link(obj)
     checks.select_only(obj)
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    return obj
+
+
+def test_a_low_poly_puppet_gets_a_graph_for_each_part(addon, quiet):
+    """A body quad and an arm quad over it, one mesh: Bind made the mesh its own graph (its
+    islands overlap), four points a part, so the arm took one handle and refused a second, with
+    advice (a higher Graph Density) that did not help. Each island now gets an outline graph of
+    its own, kept apart: the arm bends about a shoulder handle while the body stays put."""
+    obj = quad_puppet()
     assert len(obj.shapedeform.cage.data.vertices) > 200
     checks.add_handle(obj, (0.0, -0.9, 0.0))
     checks.add_handle(obj, (0.6, 0.55, 0.0))  # the shoulder, off the body
@@ -363,14 +369,7 @@ def test_an_overlap_pin_that_reaches_no_vertex_of_a_low_poly_mesh_says_so(addon,
     its corners, it changed nothing and said nothing (QA). It now says so and how to mend it;
     once the modifier's Refine cuts the faces, the same pin lifts the arm and says nothing."""
     shape_deform = addon.shapedeform_addon
-    verts = [(-0.5, -1, 0), (0.5, -1, 0), (0.5, 1, 0), (-0.5, 1, 0), (0.3, 0.4, 0), (2.5, 0.4, 0), (2.5, 0.7, 0),
-             (0.3, 0.7, 0)]
-    mesh = bpy.data.meshes.new("Puppet")
-    mesh.from_pydata(verts, [], [(0, 1, 2, 3), (4, 5, 6, 7)])
-    obj = bpy.data.objects.new("Puppet", mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    checks.select_only(obj)
-    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    obj = quad_puppet()
     capsys.readouterr()
     assert bpy.ops.shapedeform.add_handle(location=(1.4, 0.55, 0.0), kind="OVERLAP") == {"FINISHED"}
     assert "the overlap pin reaches none of 'Puppet''s vertices" in capsys.readouterr().out
