@@ -191,8 +191,10 @@ def prepare(obj, settings):
     quad.loops.foreach_get("vertex_index", loop_vertices)
     picture_layer, changed = _picture_uv_layer(quad, node)
     uv = _loop_uvs(picture_layer)
-    if node.extension == "REPEAT":  # a whole tile over shows the same picture (QA: refused)
-        uv = uv - np.floor(uv.mean(axis=0))  # the tile holding most of the plane: UVs a hair past it stay
+    if node.extension in {"REPEAT", "MIRROR"}:  # a whole tile over shows the picture again (QA: refused)
+        tile = np.floor(uv.mean(axis=0))  # the one holding most of the plane: UVs a hair past it stay
+        mirrored = (node.extension == "MIRROR") & (tile % 2 == 1)  # odd tiles show it mirrored
+        uv = np.where(mirrored, tile + 1.0 - uv, uv - tile)
     try:
         plane = fit_plane(corners)
     except ValueError as err:

@@ -254,16 +254,19 @@ def test_the_cut_out_covers_what_the_pictures_filter_shows(addon, tmp_path, inte
                                f"{alpha[faint][clipped].max():.4f}")
 
 
-@pytest.mark.parametrize("moved", ["a tile over", "mirrored", "a hair past 0"])
-def test_a_repeating_picture_is_cut_out_a_whole_tile_over(addon, tmp_path, moved):
+@pytest.mark.parametrize("extension, moved", [("REPEAT", "a tile over"), ("REPEAT", "mirrored"),
+                                               ("REPEAT", "a hair past 0"), ("MIRROR", "a tile over"),
+                                               ("MIRROR", "mirrored")])
+def test_a_repeating_picture_is_cut_out_a_whole_tile_over(addon, tmp_path, extension, moved):
     """With Extension Repeat, UVs moved a whole tile (or mirrored, u to -u) show the same
     picture (mirrored), and Bind refused: 'no visible pixel ... in the part its UVs show'. The
-    cut-out is that of the picture the UVs show, as where they were."""
+    cut-out is that of the picture the UVs show, as where they were. With Extension Mirror, the
+    tile next door shows the picture mirrored, so the UVs mirrored show it as it is."""
     reference, _ = import_picture(tmp_path)
     bind(reference)
     expected = checks.mesh_points(reference)
     obj, _ = import_picture(tmp_path)
-    next(n for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE").extension = "REPEAT"
+    next(n for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE").extension = extension
     layer = obj.data.uv_layers.active
     uv = np.empty(2 * len(layer.data), np.float32)
     layer.data.foreach_get("uv", uv)
@@ -277,7 +280,7 @@ def test_a_repeating_picture_is_cut_out_a_whole_tile_over(addon, tmp_path, moved
     layer.data.foreach_set("uv", uv.ravel())
     bind(obj)
     shown = checks.mesh_points(obj)
-    if moved != "mirrored":
+    if (moved != "mirrored") == (extension == "REPEAT"):
         np.testing.assert_allclose(shown, expected, atol=1e-4)
     else:  # the plane shows the picture mirrored about its centre: so is the cut-out's extent
         shown[:, 0] *= -1.0
