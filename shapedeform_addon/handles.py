@@ -160,7 +160,7 @@ def _place(obj, rig, location, on_rest=False, snap=False):
     graph = rig.graph
     try:
         return place(rig.plane, rig_format.rig_space(obj), location, graph.points, rig.posed, graph.triangles,
-                     on_rest, posed_heights=rig.plane.heights(rig.shown), snap=snap)
+                     on_rest, posed_heights=rig.plane.heights(rig.shown), snap=snap, rank=sources.part_ranks(obj))
     except ValueError as err:
         raise RigError(f"'{obj.name}': {err}") from None
 

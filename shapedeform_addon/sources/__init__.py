@@ -23,6 +23,11 @@ Where an overlap pin may order nothing, a source also offers ``overlap_pin_notes
 point, extent) -> list of str``, sentences for the status bar on a pin just added at graph
 point ``point`` reaching ``extent``; :func:`overlap_pin_notes` gives none for the other sources.
 
+Where parts of a rig overlap at rest in an order the object shows (a drawing's Layers Apart
+layers), a source also offers ``part_ranks(obj) -> (n,) int or None``: each cage point's part's
+place in that order, the top one highest; a handle added where parts lie level goes on the top
+one (:func:`part_ranks` gives None for the other sources).
+
 Where a source's points keep their island (a mesh that is its own graph in several islands),
 it also offers ``selected_islands(obj) -> (k,) int or None``: each selected point's island number
 (0 where not known), in ``selected``'s order, or None where the object keeps none. It tells
@@ -35,7 +40,7 @@ from . import curve, grease_pencil, image_plane, mesh, text
 from .prepared import Prepared
 
 __all__ = ["RigError", "with_article", "type_name", "Prepared", "module_for", "kind_of", "selected_islands",
-           "overlap_pin_notes"]
+           "overlap_pin_notes", "part_ranks"]
 
 
 def type_name(obj):
@@ -84,3 +89,10 @@ def overlap_pin_notes(obj, rig, point, extent):
     ``point``, reaching ``extent``, orders nothing (see the package's docstring)."""
     notes = getattr(module_for(obj), "overlap_pin_notes", None)
     return [] if notes is None else notes(obj, rig, point, extent)
+
+
+def part_ranks(obj):
+    """Each cage point's place in the order ``obj`` shows its overlapping parts in, or None (see
+    the package's docstring)."""
+    ranks = getattr(module_for(obj), "part_ranks", None)
+    return None if ranks is None else ranks(obj)

@@ -413,6 +413,18 @@ def selected(obj):
     return np.concatenate(chosen).astype(np.float64) if chosen else np.empty((0, 3))
 
 
+def part_ranks(obj):
+    """With Layers Apart, each cage point's layer's place among the drawing's layers now, the top
+    one highest (review: layers reordered after Bind gave a handle to the layer drawn under)."""
+    layers, points = rig_format.islands_of(obj.data), rig_format.islands_of(obj.shapedeform.cage.data)
+    if layers is None or points is None or not len(points):
+        return None
+    place = np.full(max(int(layers.max(initial=0)), int(points.max())) + 1, -1)
+    rigged = np.flatnonzero(layers > 0)
+    place[layers[rigged]] = rigged
+    return place[points]
+
+
 def overlap_pin_notes(obj, rig, point, extent):
     """With Layers Apart each layer is drawn whole, in the drawing's order, whatever its height:
     a pin orders its own layer's strokes only (QA: an arm layer under the body stayed under it

@@ -240,11 +240,12 @@ def distance_off(points, triangles, point):
 ON_EDGE = 1e-4
 
 
-def _layer_at(posed_points, posed_heights, triangles, point, height):
+def _layer_at(posed_points, posed_heights, triangles, point, height, rank=None):
     """Where the posed shape lies under ``point`` (2,) in the layer nearest ``height`` (the one
-    in front where ``height`` is under them all): the containing triangle's index and its
-    barycentric weights (3,), or None where no triangle contains it. Where the pose folds the
-    shape over itself several do, one per layer."""
+    in front where ``height`` is under them all; of layers level with one another, the one
+    whose points have the highest ``rank`` (n,), else the last triangle's): the containing
+    triangle's index and its barycentric weights (3,), or None where no triangle contains it.
+    Where the pose folds the shape over itself several do, one per layer."""
     corners = np.asarray(posed_points, dtype=np.float64)[triangles]          # (t, 3, 2)
     a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
     e1, e2, d = b - a, c - a, point - a
@@ -264,14 +265,14 @@ def _layer_at(posed_points, posed_heights, triangles, point, height):
     # Under every layer (on the plane, as handles are): the one in front.
     target = layer_heights.max() if height < layer_heights.min() - hair else height
     gap = np.abs(layer_heights - target)
-    # Layers level with one another (parts that overlap at rest): the last part's triangles,
-    # which a drawing's Layers Apart rig numbers in its layers' order, the top one last.
-    best = inside[np.flatnonzero(gap <= gap.min() + hair)[-1]]
+    # Layers level with one another (parts that overlap at rest): a drawing's layer drawn on top.
+    level = inside[gap <= gap.min() + hair]
+    best = level[-1] if rank is None else level[np.argmax(np.asarray(rank)[triangles[level, 0]])]
     return best, weights[best]
 
 
 def place(plane, space, location, rest_points, posed_points, triangles, on_rest=False, posed_heights=None,
-          snap=False):
+          snap=False, rank=None):
     """Where a handle added at ``location`` goes, in the shape's plane.
 
     Parameters
@@ -294,6 +295,9 @@ def place(plane, space, location, rest_points, posed_points, triangles, on_rest=
     snap : bool
         Off the shape (with ``posed_heights``), go on its nearest posed point rather than
         where ``location`` is.
+    rank : (n,) array_like, optional
+        Where layers lie level (parts that overlap at rest), the one whose points rank highest
+        (a drawing's layer drawn on top); without it, the last triangle's.
 
     Returns
     -------
@@ -327,7 +331,7 @@ def place(plane, space, location, rest_points, posed_points, triangles, on_rest=
         return rest_position(posed_points, rest_points, triangles, point[None])[0], point, None
     triangles = np.asarray(triangles, dtype=np.int64)
     layer = None if posed_heights is None else \
-        _layer_at(posed_points, posed_heights, triangles, point, plane.heights(in_rig)[0])
+        _layer_at(posed_points, posed_heights, triangles, point, plane.heights(in_rig)[0], rank)
     if layer is None and snap and posed_heights is not None:  # without heights no layer is looked for
         posed_points = np.asarray(posed_points, dtype=np.float64)
         nearest = int(np.argmin(np.linalg.norm(posed_points - point, axis=1)))

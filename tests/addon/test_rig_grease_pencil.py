@@ -336,15 +336,22 @@ def test_an_overlap_pin_on_layers_apart_says_the_layers_keep_their_order(addon, 
         bpy.data.objects.remove(obj)
 
 
-@pytest.mark.parametrize("arm_first, layers", [(False, ""), (True, ""), (False, "Arm, Body"), (True, "Body, Arm")])
-def test_a_handle_at_rest_where_layers_overlap_holds_the_layer_drawn_on_top(addon, quiet, arm_first, layers):
+@pytest.mark.parametrize("arm_first, layers, reordered", [(False, "", False), (True, "", False),
+                                                          (False, "Arm, Body", False), (True, "Body, Arm", False),
+                                                          (False, "", True), (True, "", True)])
+def test_a_handle_at_rest_where_layers_overlap_holds_the_layer_drawn_on_top(addon, quiet, arm_first, layers,
+                                                                            reordered):
     """With Layers Apart, a handle added in Object Mode where the arm lies over the body at rest
     (both level, in the drawing's plane) holds the layer drawn on top, in whatever order the
-    Layers field names them: it held whichever part's triangle came first."""
+    Layers field names them, and after the layers are reordered: it held whichever part's
+    triangle came first (and, reordered after Bind, the layer drawn on top at Bind: review)."""
     obj = body_and_arm(arm_first=arm_first)
     obj.shapedeform.layers_apart = True
     obj.shapedeform.layers = layers
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    if reordered:
+        obj.data.layers.move_bottom(obj.data.layers[-1])
+        bpy.context.view_layer.update()
     top = obj.data.layers[-1].name
     rest = {name: layer_points(obj, name, False) for name in ("Body", "Arm")}
     handle = checks.add_handle(obj, checks.world(obj, (-0.3, 0.0, 0.7)))  # over both
