@@ -186,8 +186,8 @@ def _path_carries_handles(obj):
     """What to say of a curve ``obj`` whose Path Animation was turned on after binding."""
     return (f"'{obj.name}': Path Animation was turned on after binding, and carries the handles (children of "
             "the curve) along its path, away from the shape: turn it off (Object Data > Path Animation); to have "
-            "objects ride the path, parent them to the curve, then unbind and bind again (the handles then follow "
-            "it by constraints)")
+            "objects ride the path, parent them to the curve or give them a Follow Path or Clamp To constraint, then "
+            "unbind and bind again (the handles then follow it by constraints)")
 
 
 # The solver's parameters its messages name, as the sidebar labels them.

@@ -101,16 +101,17 @@ def path_users(obj):
     Objects parented to an object with this data ride its path, as do objects and bones with a
     Follow Path or Clamp To constraint aimed at one (QA: without it they jumped to the curve's
     origin), a Guide force field on one follows it, an animated Evaluation Time is meant to move
-    something along it, and data of a library cannot be changed here. The rigs' own handles and
-    cages are not counted.
+    something along it, and data of a library cannot be changed here. The curve's own rig's
+    handles and cage are not counted.
     """
     data = obj.data
     if data.library is not None:
         return [f"the curve's data comes from the library '{data.library.name}'"]
     sharing = [o for o in bpy.data.objects if o.data == data]
+    # Only the curve's own rig is left out: another rig's handle may ride its path (review).
     riders = [child.name for o in sharing for child in o.children
-              if child.parent_type == "OBJECT" and child.shapedeform.rig is None]
-    riders += [o.name for o in bpy.data.objects if o.name not in riders and o.shapedeform.rig is None
+              if child.parent_type == "OBJECT" and child.shapedeform.rig not in sharing]
+    riders += [o.name for o in bpy.data.objects if o.name not in riders and o.shapedeform.rig not in sharing
                and any(c.type in PATH_CONSTRAINTS and c.target in sharing for c in _constraints(o))]
     guides = [o.name for o in sharing if o.field is not None and o.field.type == "GUIDE"]
     found = [f"{', '.join(map(repr, riders))} {by_count(len(riders), 'rides', 'ride')} the path"] if riders else []

@@ -309,7 +309,7 @@ def test_path_animation_turned_on_after_binding_is_reported(addon, quiet):
     assert np.linalg.norm(checks.evaluated_curve_points(obj) - [1.0, 0.6, 0.0], axis=1).min() < 0.02
 
 
-@pytest.mark.parametrize("use", ["rider", "keyed", "FOLLOW_PATH", "CLAMP_TO"])
+@pytest.mark.parametrize("use", ["rider", "keyed", "FOLLOW_PATH", "CLAMP_TO", "another rig's handle"])
 def test_a_curve_whose_path_is_used_keeps_path_animation(addon, use, capfd, quiet):
     """An object riding the curve's path (its child, or by a Follow Path or Clamp To constraint,
     which Bind turned Path Animation off under: QA, the rider jumped to the curve's origin), or a
@@ -320,17 +320,29 @@ def test_a_curve_whose_path_is_used_keeps_path_animation(addon, use, capfd, quie
     obj = bpy.context.active_object
     rider = bpy.data.objects.new("Rider", None)
     bpy.context.scene.collection.objects.link(rider)
-    if use == "rider":
+    if use == "another rig's handle":  # a puppet's hand led along the path (review: it jumped)
+        from test_rig_mesh import grid
+
+        puppet = grid("Puppet")
+        puppet.location.x += 4.0
+        bpy.context.view_layer.update()
+        checks.select_only(puppet)
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+        bpy.data.objects.remove(rider)
+        rider = checks.add_handle(puppet, checks.world(puppet, (1.0, 0.0, 0.0)))
+        rider.name = "Rider"
+        checks.select_only(obj)
+    if use in ("FOLLOW_PATH", "another rig's handle"):
+        constraint = rider.constraints.new("FOLLOW_PATH")
+        constraint.target = obj
+        constraint.use_fixed_location, constraint.offset_factor = True, 0.25
+    elif use == "rider":
         rider.parent = obj
     elif use == "keyed":
         obj.data.keyframe_insert("eval_time", frame=1)
-    else:
-        constraint = rider.constraints.new(use)
-        constraint.target = obj
-        if use == "FOLLOW_PATH":
-            constraint.use_fixed_location, constraint.offset_factor = True, 0.25
-        else:
-            rider.location = (0.9, -0.9, 0.0)
+    elif use == "CLAMP_TO":
+        rider.constraints.new(use).target = obj
+        rider.location = (0.9, -0.9, 0.0)
     bpy.context.view_layer.update()
     riding = rider.matrix_world.copy()
     capfd.readouterr()
