@@ -125,7 +125,7 @@ def on_depsgraph_update(scene, depsgraph):
         for obj in rig_format.bound_objects():  # an object moved between collections, perhaps a handle
             if rig_format.is_owner(obj):
                 handles.keep_in_collection(obj)
-        _lock_scenes()  # perhaps a character linked, overridden, appended or instanced
+    _lock_scenes()  # a character linked, overridden, appended, instanced or linked into a scene (Ctrl+L)
     duplicates.keep_islands_apart()  # a character appended twice
     for update in depsgraph.updates:
         if not isinstance(update.id, bpy.types.Object):
@@ -299,9 +299,19 @@ def sync_scene():
         _pose([o for o in rig_format.owners(scene, depsgraph) if o.shapedeform.handles], depsgraph)
 
 
+# The scenes and their objects' counts that _lock_scenes last looked at: an object or a collection
+# instance linked into a scene changes them (review: Ctrl+L updates only the scene).
+_lock_seen = {"scenes": None}
+
+
 def _lock_scenes():
     """Lock Interface in the scenes that show rigs they did not bind (:func:`rig_format.lock_scenes_showing_rigs`),
-    saying so on the console, as no operator runs to report it."""
+    saying so on the console, as no operator runs to report it; only when scenes or their
+    objects' counts changed."""
+    seen = [(scene.session_uid, len(scene.objects)) for scene in bpy.data.scenes]
+    if seen == _lock_seen["scenes"]:
+        return
+    _lock_seen["scenes"] = seen
     for scene in rig_format.lock_scenes_showing_rigs():
         print(f"Shape Deform: turned Render > Lock Interface on in scene '{scene.name}', which shows rigs: frame "
               "handlers pose them while a render reads the scene")

@@ -26,9 +26,11 @@ On an image plane's quad (kept as the bound plane's ``original_data``), ``shaped
 On a curve's data, ``shapedeform_path_off``: Bind turned its Path Animation off (nothing rode
     the path, and the rig's children would have; :func:`turn_path_off`); Unbind turns it on
     again (:func:`turn_path_back_on`).
-On a scene, ``shapedeform_lock_interface``: Bind turned its Render > Lock Interface on (frame
-    handlers pose rigs while a render reads the scene: :func:`lock_interface`); the Unbind that
-    leaves the scene no rig turns it off again (:func:`unlock_interface`).
+On a scene that shows rigs, ``shapedeform_lock_interface``: True where Bind, or the sweep of
+    scenes that show rigs they did not bind, turned its Render > Lock Interface on (frame
+    handlers pose rigs while a render reads the scene: :func:`lock_interface`), False where the
+    lock was the user's own; once the scene shows no rig (an Unbind, the character removed from
+    a shot) the mark goes, and a lock we turned on with it (:func:`unlock_interface`).
 The cage, a mesh object parented to the owner (or, on a curve whose Path Animation stayed on,
     copying its transform: :func:`follows_by_constraint`) and hidden:
     the graph's triangles, its positions the current pose in *rig space* (the owner's local
@@ -356,11 +358,15 @@ def lock_scenes_showing_rigs():
     """:func:`lock_interface` in each local scene that shows a rig (:func:`owners`) and bears no
     mark: a shot that links a character with an override, appends it, or shows it by a
     Collection Instance binds nothing itself (QA: its F12 renders ran unlocked). A marked scene
-    was seen before: a lock turned off since stays off. Returns the scenes it turned the lock on in."""
+    was seen before: a lock turned off since stays off; one that shows no rig any more is
+    unlocked (:func:`unlock_interface`). Returns the scenes it turned the lock on in."""
+    local = [scene for scene in bpy.data.scenes if scene.library is None]
+    for scene in local:
+        if INTERFACE_LOCKED in scene:
+            unlock_interface(scene)
     if not bound_objects():
         return []
-    return [scene for scene in bpy.data.scenes
-            if scene.library is None and INTERFACE_LOCKED not in scene and owners(scene) and lock_interface(scene)]
+    return [scene for scene in local if INTERFACE_LOCKED not in scene and owners(scene) and lock_interface(scene)]
 
 
 def unlock_interface(scene):

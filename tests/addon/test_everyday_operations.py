@@ -1090,6 +1090,26 @@ def test_a_shot_that_shows_a_rig_it_did_not_bind_locks_the_interface(addon, tmp_
     bpy.context.view_layer.update()
     assert bpy.context.scene.render.use_lock_interface
 
+    # Linked into another scene (Ctrl+L), which updates only the scene (review: left unlocked),
+    # or shown there by a Collection Instance; a scene that shows no rig stays as it was.
+    grid = next(o for o in bpy.context.scene.objects if o.name == "Grid")
+    for how in ("Ctrl+L", "instance", "nothing"):
+        other = bpy.data.scenes.new(how)
+        other.render.use_lock_interface = False
+        if how == "Ctrl+L":
+            checks.select_only(grid)
+            assert bpy.ops.object.make_links_scene(scene=other.name) == {"FINISHED"}
+        elif how == "instance":
+            instance = bpy.data.objects.new("Instance", None)
+            instance.instance_type, instance.instance_collection = "COLLECTION", appended.collections[0]
+            other.collection.objects.link(instance)
+        bpy.context.view_layer.update()
+        assert other.render.use_lock_interface == (how != "nothing"), how
+        assert (marked in other) == (how != "nothing"), how
+    bpy.data.objects.remove(instance)  # the character taken out of the shot: the lock goes with it
+    bpy.context.view_layer.update()
+    assert not bpy.data.scenes["instance"].render.use_lock_interface and marked not in bpy.data.scenes["instance"]
+
 
 def test_a_library_override_of_a_rigged_character_poses_bakes_and_reopens(addon, tmp_path, quiet):
     """The usual way to animate a linked character: link its collection into a shot, make a
