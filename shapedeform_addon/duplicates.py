@@ -194,6 +194,25 @@ def number_islands_apart(obj):
     return True
 
 
+def _number_below_end(obj):
+    """Number owner ``obj``'s rig anew from a first number under ``ISLANDS_END``, together with
+    every rig that reads one of its meshes (they read one numbering: review, a mesh two rigs
+    deform kept an older version's numbers); True when it did (none is a library's)."""
+    group, meshes = [], set()
+    todo = [obj]
+    while todo:  # the owners that read these meshes, and their followers' meshes
+        owner = todo.pop()
+        if owner in group:
+            continue
+        group.append(owner)
+        meshes |= {o.data for o in [owner, *followers(owner)] if o.type == "MESH"}
+        todo += [o for o in rig_format.bound_objects() if rig_format.is_owner(o) and o.data in meshes]
+    if any(o.library is not None for o in group) or any(mesh.library is not None for mesh in meshes):
+        return False
+    rig_format.renumber_islands(obj.shapedeform.cage.data, meshes | {o.shapedeform.cage.data for o in group[1:]})
+    return True
+
+
 # The list of bound objects that keep_islands_apart last checked: ``rig_format.bound_objects``
 # makes a new one when objects come or go, and only then can two rigs number alike.
 _checked = {"bound": None}
@@ -219,7 +238,7 @@ def keep_islands_apart():
         first = rig_format.first_island(obj.shapedeform.cage.data)
         if not first:  # numbered from 1 by an older version
             continue
-        if first >= rig_format.ISLANDS_END and number_islands_apart(obj):  # numbered by an older version
+        if first >= rig_format.ISLANDS_END and _number_below_end(obj):  # numbered by an older version
             first = rig_format.first_island(obj.shapedeform.cage.data)
         other = numbered.setdefault(first, obj)
         if other is obj or other.data == obj.data or number_islands_apart(obj):

@@ -605,7 +605,7 @@ def test_a_puppets_arm_stays_apart_from_its_body_after_edits(addon, edit, quiet)
         assert_arm_up_body_still(checks.evaluated_mesh_points(part), rest, is_arm)
 
 
-@pytest.mark.parametrize("numbered_by", ["this version", "an older version"])
+@pytest.mark.parametrize("numbered_by", ["this version", "an older version", "an older version, two rigs"])
 def test_a_refined_puppet_keeps_its_islands_whatever_first_number_its_rig_drew(addon, monkeypatch, tmp_path,
                                                                                numbered_by, quiet):
     """Refine's subdivision mixes the island numbers in single precision: from a first number
@@ -617,8 +617,18 @@ def test_a_refined_puppet_keeps_its_islands_whatever_first_number_its_rig_drew(a
     monkeypatch.setattr(shape_deform.rig_format.random, "choice", max)
     obj, body = puppet()
     pose_puppet(obj)
-    if numbered_by == "an older version":
-        for mesh in (obj.data, obj.shapedeform.cage.data):
+    cages = [obj.shapedeform.cage.data]
+    if numbered_by.endswith("two rigs"):  # a second rig of the same mesh reads the same numbers
+        checks.select_only(obj)
+        assert bpy.ops.object.duplicate(linked=True) == {"FINISHED"}
+        second = bpy.context.active_object
+        checks.select_only(second)
+        assert bpy.ops.shapedeform.unbind() == {"FINISHED"}  # from follower to a rig of its own
+        assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+        cages.append(second.shapedeform.cage.data)
+        assert island_numbers_of(addon, cages[1]).min() == island_numbers_of(addon, cages[0]).min()
+    if numbered_by.startswith("an older version"):
+        for mesh in (obj.data, *cages):
             islands = island_numbers_of(addon, mesh)
             mesh.attributes[shape_deform.nodes.ISLAND].data.foreach_set("value", islands + 2**24 - 2**20)
         assert island_numbers_of(addon, obj.data).max() > 2**23
@@ -627,7 +637,8 @@ def test_a_refined_puppet_keeps_its_islands_whatever_first_number_its_rig_drew(a
         bpy.ops.wm.open_mainfile(filepath=path)
         obj = bpy.data.objects["Puppet"]
     assert 0 < island_numbers_of(addon, obj.data).max() < 2**20
-    assert set(island_numbers_of(addon, obj.data)) <= set(island_numbers_of(addon, obj.shapedeform.cage.data))
+    for owner in (o for o in bpy.data.objects if o.data == obj.data and o.shapedeform.is_bound):
+        assert set(island_numbers_of(addon, obj.data)) <= set(island_numbers_of(addon, owner.shapedeform.cage.data))
     checks.select_only(obj)
     [(part, rest, is_arm)] = _refined(addon, obj, body, level=3)
     bpy.context.view_layer.update()
