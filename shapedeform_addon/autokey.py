@@ -25,7 +25,7 @@ def key_moved(context, handle):
     scene = context.scene
     tools, edit = scene.tool_settings, context.preferences.edit
     frame = scene.frame_current_final
-    if tools.auto_keying_mode == "REPLACE_KEYS" and round(frame, 2) not in _key_frames(handle):
+    if tools.auto_keying_mode == "REPLACE_KEYS" and round(_action_frame(handle, scene), 2) not in _key_frames(handle):
         return False
     keying_set = scene.keying_sets_all.active
     if tools.use_keyframe_insert_keyingset and keying_set is not None:
@@ -142,6 +142,16 @@ class _MadePaths:
 
 # The property an object's rotation is keyed on, by rotation mode (Euler modes otherwise).
 _ROTATIONS = {"QUATERNION": "rotation_quaternion", "AXIS_ANGLE": "rotation_axis_angle"}
+
+
+def _action_frame(obj, scene):
+    """The scene's frame in the time of ``obj``'s action: an NLA strip in tweak mode maps it
+    (QA: Replace keyed nothing there, comparing the scene's frame with the action's keys)."""
+    frame = scene.frame_current_final
+    animation = obj.animation_data
+    if animation is None or not animation.use_tweak_mode:
+        return frame
+    return animation.nla_tweak_strip_time_to_scene(frame, invert=True)
 
 
 def _key_frames(obj):

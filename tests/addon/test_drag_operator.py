@@ -266,12 +266,13 @@ def _keying_set(scene):
 
 @pytest.mark.parametrize("setting", ["default", "only available", "only available, y animated", "keying set",
                                      "subframe", "replace mode, y animated", "replace mode, y keyed here",
-                                     "only needed, y animated"])
+                                     "replace mode, y keyed here, NLA tweak mode", "only needed, y animated"])
 def test_auto_keying_keys_a_drag_as_blender_keys_a_move(addon, setting, keying_preferences):
     """A handle dragged with auto-keying on gets the keys Blender's G gives the other handle:
     the drag keyed location at the whole frame whatever the settings (keys on channels Only
     Insert Available leaves alone, none of the active keying set's rotation, a key at 4.0 that
-    pulled a handle dropped at 4.5 back by 0.05)."""
+    pulled a handle dropped at 4.5 back by 0.05; in an NLA strip's tweak mode Replace keyed
+    nothing, comparing the scene's frame with the action's keys: QA)."""
     obj, left, right = rig_with_two_handles()
     scene = bpy.context.scene
     scene.tool_settings.use_keyframe_insert_auto = True
@@ -279,10 +280,17 @@ def test_auto_keying_keys_a_drag_as_blender_keys_a_move(addon, setting, keying_p
     keying_preferences.use_auto_keyframe_insert_needed = setting.startswith("only needed")
     scene.tool_settings.auto_keying_mode = "REPLACE_KEYS" if setting.startswith("replace") else "ADD_REPLACE_KEYS"
     for handle in (left, right):
-        _animated_in_y(handle, [1] if setting.endswith("animated") else [1, 4] if setting.endswith("here") else [])
+        _animated_in_y(handle, [1] if setting.endswith("animated") else [1, 4] if "keyed here" in setting else [])
+        if setting.endswith("NLA tweak mode"):  # the action in a strip from frame 21: its frame 4 is 24
+            animation = handle.animation_data
+            strip = animation.nla_tracks.new().strips.new("Moves", 1, animation.action)
+            animation.action = None
+            strip.frame_start_ui, strip.select = 21, True
+            animation.use_tweak_mode = True
     if setting == "keying set":
         _keying_set(scene)
     frame, subframe = (4, 0.5) if setting == "subframe" else (4, 0.0)
+    frame += 20 if setting.endswith("NLA tweak mode") else 0
     scene.frame_set(frame, subframe=subframe)
     moved_with_g(left, (0.0, 0.2, 0.0))
     drag = addon.shapedeform_addon.drag
