@@ -126,6 +126,11 @@ def begin(context, obj, ray, pin=False):
                   if item.object.shapedeform.pin_kind == "POSITION"]
     if not candidates:
         raise RigError(f"'{obj.name}' has no handles: add one, or Ctrl+click to pin the shape")
+    # As G: a handle hidden, in a hidden collection, or unselectable is not grabbed (QA).
+    candidates = [h for h in candidates if h.visible_get(view_layer=context.view_layer) and not h.hide_select]
+    if not candidates:
+        raise RigError(f"'{obj.name}' shows no handle that can be selected: unhide its handles (Alt+H), or "
+                       "Ctrl+click to pin the shape")
     centres = np.array([_matrix(h.matrix_world)[:3, 3] for h in candidates]).reshape(-1, 3)
     return DragState(obj, candidates[nearest(centres, hit)], False, plane, hit, False, settings.active_handle)
 
@@ -144,6 +149,7 @@ def move(context, state, ray):
     handle = state.handle
     # A handle's location lives in its parent's space (handles are parented to their rig).
     offset = parent_offset(handles.parent_space(handle), hit - state.start_hit)
+    offset = np.where(tuple(handle.lock_location), 0.0, offset)  # locked axes stay, as G keeps them (QA)
     handle.location = tuple(np.asarray(state.start_location) + offset)
     state.moved = True
     # The depsgraph handler poses the shape when it sees the handle's transform change.

@@ -162,6 +162,43 @@ def test_cancelling_a_ctrl_click_gives_the_handle_list_back(addon):
     assert [item.object for item in obj.shapedeform.handles] == [left]
 
 
+def test_a_drag_keeps_a_handles_locked_axes(addon):
+    """A handle with Lock Location Y moves along X alone, as G moves it (QA: the drag moved it
+    0.3 along the locked axis)."""
+    obj, _, right = rig_with_two_handles()
+    right.lock_location[1] = True
+    start = np.array(right.location)
+    dragged_by_script(addon, obj, right, (0.2, 0.3, 0.0))
+    np.testing.assert_allclose(np.array(right.location) - start, [0.2, 0.0, 0.0], atol=1e-6)
+
+
+@pytest.mark.parametrize("how", ["hidden", "disabled in viewports", "unselectable", "collection hidden"])
+def test_a_drag_grabs_no_handle_the_user_cannot_select(addon, how):
+    """As G, a click grabs only handles shown and selectable: the nearest one hidden, the drag
+    takes the other; all hidden, it says how to get them back (QA: a hidden handle was grabbed)."""
+    obj, left, right = rig_with_two_handles()
+    drag = addon.shapedeform_addon.drag
+
+    def hide(handle):
+        if how == "hidden":
+            handle.hide_set(True)
+        elif how == "disabled in viewports":
+            handle.hide_viewport = True
+        elif how == "unselectable":
+            handle.hide_select = True
+        else:
+            obj.shapedeform.handle_collection.hide_viewport = True
+
+    hide(right)
+    if how != "collection hidden":
+        state = dragged_by_script(addon, obj, right, (0.0, 0.3, 0.0))
+        assert state.handle == left
+        drag.cancel(bpy.context, state)
+        hide(left)
+    with pytest.raises(addon.shapedeform_addon.sources.RigError, match="shows no handle that can be selected"):
+        dragged_by_script(addon, obj, right, (0.0, 0.3, 0.0))
+
+
 def test_clicks_that_grab_nothing_explain_why(addon):
     obj = grid()
     bpy.ops.shapedeform.bind()
