@@ -21,6 +21,7 @@ from mathutils import Matrix
 from ...solver.outline import outline_graph
 from ...solver.rigging.plane import fit_plane, transform_points
 from ...solver.rigging.silhouette import image_cutout, map_by_triangles, shown_frame, specks
+from ...solver.triangulate import triangle_cross
 from .. import rig_format
 from ..rig_format import CUTOUT_ATTRIBUTES, CUTOUT_KEY
 from ..errors import RigError
@@ -224,7 +225,8 @@ def prepare(obj, settings):
     vertices = plane.to_3d(graph.points).astype(np.float32)  # float32 as Blender stores them
     # Faces the way the quad does (QA: a plane mirrored and applied faces away from the plane's
     # normal, and its cut-out turned to it vanished under backface culling).
-    triangles = graph.triangles if _winding(loop_points[loop_triangles]) == _winding(graph.points[graph.triangles]) \
+    quad_turns = triangle_cross(loop_points, loop_triangles).sum() > 0.0
+    triangles = graph.triangles if quad_turns == (triangle_cross(graph.points, graph.triangles).sum() > 0.0) \
         else graph.triangles[:, ::-1]
     # Every UV map (a second one a shader reads, a scratch one) goes onto the cut-out, so each
     # still shows what it showed on the quad.
@@ -280,12 +282,6 @@ def _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triang
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     return to_plane(rings), to_plane(shown_frame(width, height, window)), notes
-
-
-def _winding(corners):
-    """Whether triangles' ``corners`` (t, 3, 2) turn counter-clockwise, taken together."""
-    first, second = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    return bool(np.sum(first[:, 0] * second[:, 1] - first[:, 1] * second[:, 0]) > 0.0)
 
 
 def _loop_triangles(quad):
