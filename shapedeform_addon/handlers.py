@@ -125,7 +125,10 @@ def on_depsgraph_update(scene, depsgraph):
         for obj in rig_format.bound_objects():  # an object moved between collections, perhaps a handle
             if rig_format.is_owner(obj):
                 handles.keep_in_collection(obj)
-    _lock_scenes()  # a character linked, overridden, appended, instanced or linked into a scene (Ctrl+L)
+    # A character linked, overridden, appended or instanced updates a collection; one linked into
+    # a scene (Ctrl+L) the scene alone. A handle's move updates neither.
+    if any(isinstance(update.id, (bpy.types.Collection, bpy.types.Scene)) for update in depsgraph.updates):
+        _lock_scenes()
     duplicates.keep_islands_apart()  # a character appended twice
     for update in depsgraph.updates:
         if not isinstance(update.id, bpy.types.Object):
