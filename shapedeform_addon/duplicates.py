@@ -177,36 +177,26 @@ def own_cage_mesh(obj):
     return True
 
 
-def number_islands_apart(obj):
+def number_islands_apart(obj, with_sharers=False):
     """Number the islands of owner ``obj``'s rig from a first number no other rig has: on its
-    cage, on its mesh and on its followers' meshes (``rig_format.renumber_islands``), where no
-    other rig reads those meshes (a mesh two rigs deform keeps the numbers both read); True
-    when it did."""
-    if obj.type != "MESH" or obj.library is not None:
+    cage, on its mesh and on its followers' meshes (``rig_format.renumber_islands``). Where
+    another rig reads those meshes (a mesh two rigs deform), nothing, as both read the numbers;
+    with ``with_sharers``, those rigs too, by the same shift (review: an older version's numbers
+    past ``ISLANDS_END`` stayed on a shared mesh). True when it did (no data is a library's)."""
+    if obj.type != "MESH":
         return False
-    mine = [obj, *followers(obj)]
-    meshes = {o.data for o in mine if o.type == "MESH"}
-    if any(mesh.library is not None for mesh in meshes):
-        return False
-    if any(o.data in meshes and o not in mine for o in rig_format.bound_objects()):
-        return False
-    rig_format.renumber_islands(obj.shapedeform.cage.data, meshes)
-    return True
-
-
-def _number_below_end(obj):
-    """Number owner ``obj``'s rig anew from a first number under ``ISLANDS_END``, together with
-    every rig that reads one of its meshes (they read one numbering: review, a mesh two rigs
-    deform kept an older version's numbers); True when it did (none is a library's)."""
-    group, meshes = [], set()
-    todo = [obj]
+    group, meshes, todo = [], set(), [obj]
     while todo:  # the owners that read these meshes, and their followers' meshes
         owner = todo.pop()
         if owner in group:
             continue
         group.append(owner)
-        meshes |= {o.data for o in [owner, *followers(owner)] if o.type == "MESH"}
-        todo += [o for o in rig_format.bound_objects() if rig_format.is_owner(o) and o.data in meshes]
+        mine = [owner, *followers(owner)]
+        meshes |= {o.data for o in mine if o.type == "MESH"}
+        readers = [o for o in rig_format.bound_objects() if o.data in meshes and o not in mine]
+        if readers and not with_sharers:
+            return False
+        todo += [o for o in readers if rig_format.is_owner(o)]
     if any(o.library is not None for o in group) or any(mesh.library is not None for mesh in meshes):
         return False
     rig_format.renumber_islands(obj.shapedeform.cage.data, meshes | {o.shapedeform.cage.data for o in group[1:]})
@@ -238,7 +228,7 @@ def keep_islands_apart():
         first = rig_format.first_island(obj.shapedeform.cage.data)
         if not first:  # numbered from 1 by an older version
             continue
-        if first >= rig_format.ISLANDS_END and _number_below_end(obj):  # numbered by an older version
+        if first >= rig_format.ISLANDS_END and number_islands_apart(obj, with_sharers=True):  # an older version's
             first = rig_format.first_island(obj.shapedeform.cage.data)
         other = numbered.setdefault(first, obj)
         if other is obj or other.data == obj.data or number_islands_apart(obj):
