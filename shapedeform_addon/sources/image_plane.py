@@ -13,6 +13,7 @@ cut-out is then deleted.
 
 import hashlib
 import os
+from typing import NamedTuple
 
 import bpy
 import numpy as np
@@ -37,29 +38,45 @@ def _material_index(obj):
     return min(obj.data.polygons[0].material_index, len(obj.material_slots) - 1)
 
 
-def _image_node(obj):
-    """The image node of the material the quad's face shows whose image has alpha, or None: the
-    one whose alpha is wired to something (a shader's Alpha), else the first. An image Blender
-    could not load (its file missing, a sequence no frame of which was shown yet) has no
+class Picture(NamedTuple):
+    """An image node and the group nodes it lies in, outermost first (empty in the material's own tree)."""
+    node: bpy.types.Node
+    groups: tuple
+
+
+def _picture(obj):
+    """The :class:`Picture` of the material the quad's face shows whose image has alpha, or
+    None: the one whose alpha is wired to something (a shader's Alpha), else the first. An image
+    Blender could not load (its file missing, a sequence no frame of which was shown yet) has no
     channels to tell: it counts, so Bind can say what is wrong rather than rig the bare quad."""
     found = _pictures(obj)
     return found[0] if found else None
 
 
 def _pictures(obj):
-    """The image nodes with alpha of the material the quad's face shows, those whose alpha is
-    wired to something first."""
+    """The :class:`Picture` s with alpha of the material the quad's face shows, in its tree and in
+    the node groups it uses, those whose alpha is wired to something first."""
     if not obj.material_slots:
         return []
     material = obj.material_slots[_material_index(obj)].material
     if material is None or material.node_tree is None:
         return []
     found = []
-    for node in material.node_tree.nodes:
-        image = getattr(node, "image", None) if node.type == "TEX_IMAGE" else None
+    for picture in _image_nodes(material.node_tree, ()):
+        image = picture.node.image
         if image is not None and image.channels in (0, 4) and image.alpha_mode != "NONE":
-            found.append((not node.outputs["Alpha"].is_linked, len(found), node))
-    return [node for *_, node in sorted(found)]
+            found.append((not picture.node.outputs["Alpha"].is_linked, len(found), picture))
+    return [picture for *_, picture in sorted(found)]
+
+
+def _image_nodes(tree, groups):
+    """Each :class:`Picture` of node ``tree``, which lies in group nodes ``groups``, and of the
+    groups it uses (a material built of node groups)."""
+    for node in tree.nodes:
+        if node.type == "TEX_IMAGE":
+            yield Picture(node, groups)
+        elif node.type == "GROUP" and node.node_tree is not None:
+            yield from _image_nodes(node.node_tree, (*groups, node))
 
 
 # How far past a visible texel's edge the picture is cut out, in texels, by the node's
@@ -69,8 +86,8 @@ _FILTER_MARGIN = {"Closest": 1.0, "Linear": 1.0, "Cubic": 2.5, "Smart": 2.5}
 
 
 def _image(obj):
-    node = _image_node(obj)
-    return None if node is None else node.image
+    picture = _picture(obj)
+    return None if picture is None else picture.node.image
 
 
 def _alpha(obj, node):
@@ -131,18 +148,19 @@ def is_image_plane(obj):
             and len(data.uv_layers) > 0 and _image(obj) is not None)
 
 
-def _picture_uv_layer(quad, node):
-    """The UV map ``node`` reads its picture through, and the name of a node on the way that
-    changes the coordinates ("" when none).
+def _picture_uv_layer(quad, picture):
+    """The UV map :class:`Picture` ``picture`` reads its picture through, and the name of a node
+    on the way that changes the coordinates ("" when none).
 
     The map is the one a UV Map node upstream of its Vector names (through reroutes, node
-    groups and nodes such as Mapping), else the one Blender renders with (the render-active
-    map, which also feeds an unwired Vector). The map being edited (the active one) may be a
-    scratch map. A node that changes the coordinates (a Mapping node that is not the identity, a
-    Texture Coordinate output other than UV) makes what is cut out differ from what renders.
+    groups, in and out of the groups it lies in, and nodes such as Mapping), else the one
+    Blender renders with (the render-active map, which also feeds an unwired Vector). The map
+    being edited (the active one) may be a scratch map. A node that changes the coordinates (a
+    Mapping node that is not the identity, a Texture Coordinate output other than UV) makes what
+    is cut out differ from what renders.
     """
     named, changed = "", ""
-    links = node.inputs["Vector"].links
+    links, groups = picture.node.inputs["Vector"].links, picture.groups
     while links:
         link = links[0]
         source = link.from_node
@@ -155,6 +173,10 @@ def _picture_uv_layer(quad, node):
         if source.type == "GROUP" and source.node_tree is not None:
             inside = next((n for n in source.node_tree.nodes if n.type == "GROUP_OUTPUT" and n.is_active_output), None)
             links = inside.inputs[link.from_socket.identifier].links if inside is not None else ()
+            groups = (*groups, source)
+            continue
+        if source.type == "GROUP_INPUT" and groups:  # out to what feeds the group node
+            links, groups = groups[-1].inputs[link.from_socket.identifier].links, groups[:-1]
             continue
         if source.type == "MAPPING" and not _is_identity(source):
             changed = changed or source.name
@@ -186,11 +208,12 @@ def _loop_uvs(layer):
 def prepare(obj, settings):
     """Read the object's rest shape and build its graph, changing nothing (see :mod:`.sources`)."""
     quad = obj.data
-    node = _image_node(obj)
+    picture = _picture(obj)
+    node = picture.node
     corners = mesh_source.positions(quad).astype(np.float64)
     loop_vertices = np.empty(len(quad.loops), dtype=np.int32)
     quad.loops.foreach_get("vertex_index", loop_vertices)
-    picture_layer, changed = _picture_uv_layer(quad, node)
+    picture_layer, changed = _picture_uv_layer(quad, picture)
     uv = _loop_uvs(picture_layer)
     if node.extension in {"REPEAT", "MIRROR"}:  # a whole tile over shows the picture again (QA: refused)
         tile = np.floor(uv.mean(axis=0))  # the one holding most of the plane: UVs a hair past it stay
@@ -204,7 +227,7 @@ def prepare(obj, settings):
     # UVs are interpolated over the triangles Blender splits the face into, each affinely: map
     # through the same triangles, so a quad that is no parallelogram shows the same texels.
     loop_triangles = _loop_triangles(quad)
-    reader = _alpha_reader(node)
+    reader = _alpha_reader(picture)
     shown = None  # what the plane shows of its picture, which the cut-out covers within
     if reader is None:
         # Nothing reads the alpha: the plane renders whole, so is it rigged (its pixels unread:
@@ -324,19 +347,29 @@ def _cutout_notes(node, reader, alpha, window):
     return notes
 
 
-def _alpha_reader(node):
-    """How the material reads image ``node``'s alpha: "" straight into a shader's Alpha (through
-    reroutes; or a Mix Shader's factor over a Transparent BSDF), None when nothing that reaches
-    the material's output reads it (unwired, muted, or into a shader left out), else the name of
-    a node on the way that may change it."""
-    shown = _feeding_output(node.id_data)
+def _alpha_reader(picture):
+    """How the material reads :class:`Picture` ``picture``'s alpha: "" straight into a shader's
+    Alpha (through reroutes and out of the groups it lies in; or a Mix Shader's factor over a
+    Transparent BSDF), None when nothing that reaches the material's output reads it (unwired,
+    muted, or into a shader left out), else the name of a node on the way that may change it."""
+    node, groups = picture
+    shown = _feeding_output(groups[0].id_data if groups else node.id_data)
     changed = None
-    for link in node.outputs["Alpha"].links:
-        while not link.is_muted and link.to_node.type == "REROUTE" and link.to_node.outputs[0].links:
-            link = link.to_node.outputs[0].links[0]
+    todo = [(link, groups) for link in node.outputs["Alpha"].links]
+    while todo:
+        link, within = todo.pop(0)
         to, socket = link.to_node, link.to_socket
-        if link.is_muted or to not in shown:
-            continue  # nothing renders what it reads
+        if link.is_muted:
+            continue
+        if to.type == "REROUTE":
+            todo.extend((onward, within) for onward in to.outputs[0].links)
+            continue
+        if to.type == "GROUP_OUTPUT" and within:  # out of the group node it lies in
+            if to.is_active_output:
+                todo.extend((onward, within[:-1]) for onward in within[-1].outputs[socket.identifier].links)
+            continue
+        if (within[0] if within else to) not in shown:
+            continue  # nothing renders what it reads (a group node counts whole)
         if socket.name == "Alpha" and any(output.type == "SHADER" for output in to.outputs):
             return ""
         first = to.inputs[1].links if to.type == "MIX_SHADER" and socket == to.inputs[0] else ()
@@ -366,7 +399,7 @@ def _reading_notes(obj, node, changed):
              "what renders"] if changed else []
     # Another node showing the same picture (Blender 5's importer adds one to a material it
     # reuses) is cut out alike.
-    others = list(dict.fromkeys(other.image.name for other in _pictures(obj)[1:]
+    others = list(dict.fromkeys(other.image.name for other, _ in _pictures(obj)[1:]
                                 if other.outputs["Alpha"].is_linked and other.image != node.image))
     if others:
         notes.append(f"only the picture '{node.image.name}' is cut out, not " + ", ".join(map(repr, others)))

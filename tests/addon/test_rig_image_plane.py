@@ -973,3 +973,52 @@ def test_a_second_node_of_the_same_picture_is_not_told_as_another_picture(addon,
     capsys.readouterr()
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     assert "is cut out, not" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("depth", [1, 2])
+def test_a_picture_read_inside_a_node_group_is_cut_out(addon, tmp_path, capsys, depth):
+    """A material built of node groups (a sprite group holding the Image Texture, fed its UVs
+    from outside, its Color and Alpha out to the shader): Bind cut nothing out and rigged the
+    whole quad without a word. The picture is now cut out through the UV map fed in from
+    outside the groups, as in the material's own tree."""
+    obj, pixels = import_picture(tmp_path)
+    quad = obj.data
+    imported = uv_of_points(quad)
+    loops = np.empty(len(quad.loops), np.int32)
+    quad.loops.foreach_get("vertex_index", loops)
+    turned = np.stack([1.0 - imported[:, 1], imported[:, 0]], axis=1)
+    quad.uv_layers.new(name="Turned").data.foreach_set("uv", turned[loops].astype(np.float32).ravel())
+    tree = obj.active_material.node_tree
+    image = next(n for n in tree.nodes if n.type == "TEX_IMAGE")
+    shader = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    uv_map = tree.nodes.new("ShaderNodeUVMap")
+    uv_map.uv_map = "Turned"
+    outer, vector, color, alpha = tree, uv_map.outputs["UV"], shader.inputs["Base Color"], shader.inputs["Alpha"]
+    for level in range(depth):  # each level a group node whose Vector in and Color, Alpha out are wired through
+        group = bpy.data.node_groups.new(f"Sprite {level}", "ShaderNodeTree")
+        group.interface.new_socket("Vector", in_out="INPUT", socket_type="NodeSocketVector")
+        group.interface.new_socket("Color", in_out="OUTPUT", socket_type="NodeSocketColor")
+        group.interface.new_socket("Alpha", in_out="OUTPUT", socket_type="NodeSocketFloat")
+        holder = outer.nodes.new("ShaderNodeGroup")
+        holder.node_tree = group
+        outer.links.new(vector, holder.inputs["Vector"])
+        outer.links.new(holder.outputs["Color"], color)
+        outer.links.new(holder.outputs["Alpha"], alpha)
+        inputs, outputs = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+        outer, vector, color, alpha = group, inputs.outputs["Vector"], outputs.inputs["Color"], outputs.inputs["Alpha"]
+    inner = outer.nodes.new("ShaderNodeTexImage")
+    inner.image, inner.interpolation = image.image, image.interpolation
+    outer.links.new(vector, inner.inputs["Vector"])
+    outer.links.new(inner.outputs["Color"], color)
+    outer.links.new(inner.outputs["Alpha"], alpha)
+    tree.nodes.remove(image)
+    capsys.readouterr()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    said = capsys.readouterr().out
+    assert obj.shapedeform.kind == "IMAGE" and len(obj.data.vertices) > 4
+    assert "changes" not in said and "nothing reads" not in said, said
+    picture = uv_of_points(obj.data, "Turned")  # cut out around the visible pixels, within two pixels
+    yy, xx = np.nonzero(pixels[..., 3] > 0)
+    two_pixels = 2.0 / np.array([W, H])
+    assert np.all(np.abs(picture.min(axis=0) - [xx.min() / W, yy.min() / H]) < two_pixels)
+    assert np.all(np.abs(picture.max(axis=0) - [(xx.max() + 1) / W, (yy.max() + 1) / H]) < two_pixels)
