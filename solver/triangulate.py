@@ -141,22 +141,27 @@ def conforming_triangulation(loops, interior, geometry, max_rounds=20):
         edge_keys = np.unique(_segment_keys(
             np.concatenate([triangles[:, 0], triangles[:, 1], triangles[:, 2]]),
             np.concatenate([triangles[:, 1], triangles[:, 2], triangles[:, 0]]), n))
-        missing_any = False
+        # Each loop's segments at once: a segment's end is the next point, the loop's first after its last.
+        following_index = np.arange(1, n + 1 - len(interior))
+        following_index[starts[1:] - 1] = starts[:-1]
+        boundary = points[:len(following_index)]
+        keys = _segment_keys(np.arange(len(following_index)), following_index, n)
+        found = np.minimum(np.searchsorted(edge_keys, keys), max(len(edge_keys) - 1, 0))
+        # A segment shorter than this is not split: it cannot be recovered by splitting
+        # (coincident points) and splitting it again would only multiply points.
+        missing = ((edge_keys[found] != keys) if len(edge_keys) else np.ones(len(keys), bool)) & (
+            np.linalg.norm(boundary[following_index] - boundary, axis=1) > 1e-7 * scale)
+        missing_any = bool(missing.any())
         new_loops, blocked_centres, blocked_radii = [], [], []
         for loop, start in zip(loops, starts[:-1]):
-            index = np.arange(len(loop)) + start
-            keys = _segment_keys(index, np.roll(index, -1), n)
-            following = np.roll(loop, -1, axis=0)
-            # A segment shorter than this is not split: it cannot be recovered by splitting
-            # (coincident points) and splitting it again would only multiply points.
-            missing = ~np.isin(keys, edge_keys) & (np.linalg.norm(following - loop, axis=1) > 1e-7 * scale)
-            if missing.any():
-                missing_any = True
-                midpoints = 0.5 * (loop[missing] + following[missing])
+            loop_missing = missing[start:start + len(loop)]
+            if loop_missing.any():
+                following = np.roll(loop, -1, axis=0)
+                midpoints = 0.5 * (loop[loop_missing] + following[loop_missing])
                 blocked_centres.append(midpoints)
-                blocked_radii.append(0.5 * np.linalg.norm(following[missing] - loop[missing], axis=1))
+                blocked_radii.append(0.5 * np.linalg.norm(following[loop_missing] - loop[loop_missing], axis=1))
                 # Insert each midpoint right after the start of its segment.
-                order = np.concatenate([np.arange(len(loop)), np.flatnonzero(missing) + 0.5])
+                order = np.concatenate([np.arange(len(loop)), np.flatnonzero(loop_missing) + 0.5])
                 loop = np.concatenate([loop, midpoints])[np.argsort(order, kind="stable")]
             new_loops.append(loop)
         if not missing_any:
