@@ -1091,11 +1091,25 @@ def test_a_shot_that_shows_a_rig_it_did_not_bind_locks_the_interface(addon, tmp_
     assert bpy.context.scene.render.use_lock_interface
 
     # Linked into another scene (Ctrl+L), which updates only the scene (review: left unlocked),
-    # or shown there by a Collection Instance; a scene that shows no rig stays as it was.
+    # or shown there by a Collection Instance, a Background Set, an instance pointed from props
+    # to the character, or linked in as another object goes, none of which changes how many
+    # objects the scene has (QA: left unlocked); a scene that shows no rig stays as it was.
     grid = next(o for o in bpy.context.scene.objects if o.name == "Grid")
-    for how in ("Ctrl+L", "instance", "nothing"):
+    props, window = bpy.data.collections.new("Props"), bpy.context.window
+    character_scene = window.scene
+    for how in ("Ctrl+L", "instance", "background set", "instance swapped", "linked as another goes", "nothing"):
         other = bpy.data.scenes.new(how)
         other.render.use_lock_interface = False
+        if how == "instance swapped":
+            swapped = bpy.data.objects.new("Swapped", None)
+            swapped.instance_type, swapped.instance_collection = "COLLECTION", props
+            other.collection.objects.link(swapped)
+        # Worked on in the shot (but for Ctrl+L, made from the character's scene), an object
+        # already added there (an update the add-on has seen).
+        window.scene = character_scene if how == "Ctrl+L" else other
+        bpy.context.view_layer.update()
+        other.collection.objects.link(bpy.data.objects.new(f"{how} prop", None))
+        bpy.context.view_layer.update()
         if how == "Ctrl+L":
             checks.select_only(grid)
             assert bpy.ops.object.make_links_scene(scene=other.name) == {"FINISHED"}
@@ -1103,7 +1117,15 @@ def test_a_shot_that_shows_a_rig_it_did_not_bind_locks_the_interface(addon, tmp_
             instance = bpy.data.objects.new("Instance", None)
             instance.instance_type, instance.instance_collection = "COLLECTION", appended.collections[0]
             other.collection.objects.link(instance)
+        elif how == "background set":
+            other.background_set = character_scene
+        elif how == "instance swapped":
+            swapped.instance_collection = appended.collections[0]
+        elif how == "linked as another goes":
+            other.collection.objects.unlink(bpy.data.objects[f"{how} prop"])
+            other.collection.objects.link(grid)
         bpy.context.view_layer.update()
+        window.scene = character_scene
         assert other.render.use_lock_interface == (how != "nothing"), how
         assert (marked in other) == (how != "nothing"), how
     bpy.data.objects.remove(instance)  # the character taken out of the shot: the lock goes with it
