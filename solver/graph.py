@@ -259,7 +259,7 @@ def _hexagonal_lattice(bounds, spacing):
 
 def _interior_points(geometry, boundary, spacing):
     """Inner-polygon points and lattice points, with crowded points collapsed away."""
-    inner = geometry.buffer(-0.5 * spacing, join_style="mitre", mitre_limit=2.0)
+    inner = _inset(geometry, 0.5 * spacing, join_style="mitre", mitre_limit=2.0)
     inner_points = [np.empty((0, 2))]
     if not inner.is_empty:
         for island in geometry_rings(inner):
@@ -270,7 +270,7 @@ def _interior_points(geometry, boundary, spacing):
                 inner_points.append(resampled)
     inner_points = np.concatenate(inner_points)
 
-    core = geometry.buffer(-spacing)
+    core = _inset(geometry, spacing)
     lattice = np.empty((0, 2))
     if not core.is_empty:
         lattice = _hexagonal_lattice(core.bounds, spacing)
@@ -292,6 +292,41 @@ def _interior_points(geometry, boundary, spacing):
         kept = np.concatenate([kept, candidates])
         result.append(candidates)
     return np.concatenate(result) if result else np.empty((0, 2))
+
+
+def _inset(geometry, distance, **style):
+    """``geometry`` shrunk by ``distance`` > 0 (a negative buffer, ``style`` as shapely's).
+
+    Parts that certainly hold no disc of that radius leave nothing, and are dropped first: GEOS
+    took 7 s to shrink a scattered picture's 126 lacy clusters of specks to nothing, as every
+    offset ring crossed hundreds of others."""
+    parts = shapely.get_parts(geometry)
+    bounds = shapely.bounds(parts)
+    wide = np.flatnonzero(np.min(bounds[:, 2:] - bounds[:, :2], axis=1) > 2.0 * distance)
+    holding = wide[[_may_hold_disc(part, distance) for part in parts[wide]]]
+    if len(holding) == len(parts):
+        return geometry.buffer(-distance, **style)
+    return shapely.MultiPolygon(list(parts[holding])).buffer(-distance, **style)
+
+
+def _may_hold_disc(polygon, radius):
+    """False where ``polygon`` certainly holds no disc of ``radius``.
+
+    The centre of the largest disc it holds lies within ``h / sqrt(2)`` of a node of a lattice
+    of step ``h``, inside the polygon, whose distance to the boundary is at least the disc's
+    radius less that; a node's distance to the nearest boundary vertex is at least its distance
+    to the boundary. So the largest radius is below the nodes' greatest vertex distance plus
+    ``h / sqrt(2)``.
+    """
+    step = 0.5 * radius
+    x0, y0, x1, y1 = polygon.bounds
+    xs, ys = np.meshgrid(np.arange(x0, x1 + step, step), np.arange(y0, y1 + step, step))
+    inside = shapely.contains_xy(polygon, xs.ravel(), ys.ravel())
+    if not inside.any():
+        return False
+    nodes = np.column_stack([xs.ravel()[inside], ys.ravel()[inside]])
+    reach, _ = cKDTree(shapely.get_coordinates(polygon.boundary)).query(nodes)
+    return reach.max() + step * np.sqrt(0.5) >= radius
 
 
 def _smooth(points, first_interior, triangles, geometry, rounds=3, step=0.5):
