@@ -62,7 +62,7 @@ from ..solver.rigging.outline import REFINE_BUDGET
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 19
+VERSION = 20
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
@@ -446,11 +446,25 @@ def _set_bezier_handles(b, cage, curve, selection, left, right, point):
     triangle (``point``, its place then): an affine map keeps a smooth joint's two handles in
     line, where each handle's own nearest triangle turned them apart (a kink of 7 degrees in a
     circle dragged by 0.6 of its radius)."""
+    given = drawing = curve
     for side, position in (("LEFT", left), ("RIGHT", right)):
+        mapped, free = cage.mapped(position, about=point), _free(b, selection, side)
         curve = b.node("GeometryNodeSetCurveHandlePositions",
-                       {"Curve": curve, "Selection": _free(b, selection, side),
-                        "Position": cage.mapped(position, about=point)}, mode=side).outputs[0]
-    return curve
+                       {"Curve": curve, "Selection": free, "Position": mapped}, mode=side).outputs[0]
+        # Set Curve Handle Positions leaves grease pencil alone (Blender 4.5-5.2): a drawing's
+        # Bezier strokes kept their handles' rest directions, turned parts bent (QA). Their
+        # handles are written as the attributes they are, on drawings alone (a mesh would get
+        # attributes of those names).
+        drawing = b.node("GeometryNodeStoreNamedAttribute",
+                         {"Geometry": drawing, "Selection": free, "Name": f"handle_{side.lower()}",
+                          "Value": mapped},
+                         data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
+    layers = b.node("GeometryNodeAttributeDomainSize", {"Geometry": given},
+                    component="GREASEPENCIL").outputs["Layer Count"]
+    has_drawings = b.node("FunctionNodeCompare", {"A": layers, "B": 0}, data_type="INT",
+                          operation="GREATER_THAN").outputs[0]
+    return b.node("GeometryNodeSwitch", {"Switch": has_drawings, "False": curve, "True": drawing},
+                  input_type="GEOMETRY").outputs[0]
 
 
 def _map_points(b, cage, geometry, selection):

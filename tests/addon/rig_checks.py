@@ -75,7 +75,7 @@ def evaluated_mesh_points(obj):
     return mesh_points(obj, obj.evaluated_get(depsgraph).data)
 
 
-def _attribute_vectors(attributes, name, count):
+def attribute_vectors(attributes, name, count):
     flat = np.empty(count * 3, np.float32)
     attributes[name].data.foreach_get("vector", flat)
     return flat.reshape(-1, 3)
@@ -89,7 +89,7 @@ def evaluated_curve_points(obj, handles=True):
     curves = geometry.curves
     count = len(curves.points)
     names = ("position", "handle_left", "handle_right") if handles else ("position",)
-    return np.concatenate([_attribute_vectors(curves.attributes, name, count) for name in names])
+    return np.concatenate([attribute_vectors(curves.attributes, name, count) for name in names])
 
 
 def drawing_points(drawing):

@@ -461,3 +461,41 @@ def test_a_drawing_joined_into_a_figure_with_layers_apart_keeps_its_parts(addon,
     assert obj.shapedeform.status == ""
     assert np.abs(layer_points(obj, "Arm") - layer_points(obj, "Arm", False)).max() > 0.3
     assert np.abs(layer_points(obj, "Body") - body).max() < 1e-4
+
+
+def test_a_bezier_strokes_handles_turn_with_its_part(addon):
+    """A stroke made Bezier (Set Curve Type), its handles Aligned as after editing one by hand,
+    turned by its only handle: the drawing turns rigidly, its Bezier handles included (they
+    were moved along with their points but kept their rest directions, 0.18 off at 1.5 rad on
+    an ellipse 2 wide, and the drawn line bent)."""
+    from mathutils import Matrix
+
+    bpy.ops.object.grease_pencil_add(type="EMPTY")
+    obj = bpy.context.active_object
+    layer = obj.data.layers[0] if len(obj.data.layers) else obj.data.layers.new("Lines")
+    drawing = (layer.current_frame() or layer.frames.new(bpy.context.scene.frame_current)).drawing
+    drawing.add_strokes([12])
+    turns = np.linspace(0.0, 2.0 * np.pi, 12, endpoint=False)
+    ellipse = np.stack([np.cos(turns), np.zeros(12), 0.4 * np.sin(turns)], axis=1)
+    drawing.attributes["position"].data.foreach_set("vector", ellipse.astype(np.float32).ravel())
+    drawing.attributes.new("cyclic", "BOOLEAN", "CURVE").data[0].value = True
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.grease_pencil.select_all(action="SELECT")
+    bpy.ops.grease_pencil.set_curve_type(type="BEZIER")
+    bpy.ops.grease_pencil.set_handle_type(type="ALIGN")
+    bpy.ops.object.mode_set(mode="OBJECT")
+
+    def points(evaluated):
+        source = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data if evaluated else obj.data
+        attributes = source.layers[0].current_frame().drawing.attributes
+        return np.stack([checks.attribute_vectors(attributes, name, 12) for name in ("position", "handle_left",
+                                                                                      "handle_right")])
+
+    rest = points(False)
+    assert np.abs(rest[1] - rest[0]).max() > 0.05  # the handles reach out from their points
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    handle = checks.add_handle(obj, (0.0, 0.0, 0.0))
+    handle.rotation_euler.y += 1.5
+    bpy.context.view_layer.update()
+    turn = np.array(Matrix.Rotation(1.5, 3, "Y"))
+    np.testing.assert_allclose(points(True), rest @ turn.T, atol=1e-4)
