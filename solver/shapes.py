@@ -99,7 +99,7 @@ def shape_geometry(rings):
     """Turn rings into one valid shapely geometry: islands with their holes.
 
     Nesting is worked out from containment, never from orientation: a ring inside an odd
-    number of other rings is a hole. Overlapping islands are merged. A self-intersecting ring
+    number of other rings is a hole. A ring repeated exactly counts once. Overlapping islands are merged. A self-intersecting ring
     is repaired (a figure eight becomes two lobes) when its repair keeps area.
 
     Parameters
@@ -132,6 +132,10 @@ def shape_geometry(rings):
             if polygon.is_empty or polygon.area <= 1e-9 * abs(signed_area(ring)) + 1e-300:
                 raise ValueError(f"ring {i} is self-intersecting and cannot be repaired")
         polygons.append(polygon)
+    # A ring drawn twice on itself (a spline duplicated in place) is one outline: by nesting the
+    # two would make each other a hole, and nothing would be left (QA).
+    _, first = np.unique(shapely.to_wkb(shapely.normalize(polygons)), return_index=True)
+    polygons = [polygons[i] for i in np.sort(first)]
 
     if len(polygons) == 1:
         geometry = polygons[0]

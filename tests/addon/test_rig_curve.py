@@ -114,6 +114,27 @@ def test_curve_with_no_area_is_refused(addon, count):
     assert checks.snapshot() == before and "sd_rest" not in curve
 
 
+@pytest.mark.parametrize("fill_mode", ["BOTH", "NONE"])
+def test_a_closed_spline_duplicated_in_place_binds_as_one(addon, fill_mode):
+    """Shift+D then Esc in Edit Mode leaves a closed spline's copy on itself: Bind refused it,
+    "the rings enclose no area" (each copy a hole in the other), though Blender draws it."""
+    curve = bpy.data.curves.new("Shape", "CURVE")
+    curve.dimensions, curve.fill_mode = "2D", fill_mode
+    for _ in range(2):
+        spline = curve.splines.new("BEZIER")
+        spline.bezier_points.add(3)
+        for point, angle in zip(spline.bezier_points, np.arange(4) * np.pi / 2):
+            point.co = (np.cos(angle), np.sin(angle), 0.0)
+            point.handle_left_type = point.handle_right_type = "AUTO"
+        spline.use_cyclic_u = True
+    obj = bpy.data.objects.new("Shape", curve)
+    bpy.context.scene.collection.objects.link(obj)
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    cage = checks.mesh_points(checks.cage(obj))
+    assert np.ptp(cage[:, :2], axis=0) == pytest.approx([2.0, 2.0], abs=0.02)  # the whole disc
+
+
 def test_a_closed_spline_round_no_area_beside_the_shape_is_left_out(addon):
     """A square and a closed spline whose points are on one line: Bind refused the whole curve
     ("ring 1 has zero area"); the flat spline is left out of the outline (a curve of such

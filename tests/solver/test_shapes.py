@@ -11,6 +11,16 @@ SQUARE = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], dtype=float)
 HOLE = np.array([[1, 1], [3, 1], [3, 3], [1, 3]], dtype=float)
 
 
+@pytest.mark.parametrize("copy", ["same", "reversed", "started elsewhere"])
+def test_a_ring_repeated_on_itself_counts_once(copy):
+    """A closed spline duplicated in place (Shift+D, Esc): by nesting each copy was a hole in
+    the other and the shape was refused ("the rings enclose no area"). A ring repeated exactly,
+    in either direction and from any point, is one outline, around a hole as well."""
+    again = {"same": SQUARE, "reversed": SQUARE[::-1], "started elsewhere": np.roll(SQUARE, 2, axis=0)}[copy]
+    assert shape_geometry([SQUARE, again]).area == pytest.approx(16.0)
+    assert shape_geometry([SQUARE, HOLE, again, HOLE[::-1]]).area == pytest.approx(12.0)
+
+
 @pytest.mark.parametrize("flip_outer, flip_hole", [(False, False), (True, False), (False, True), (True, True)])
 def test_orientation_and_nesting_are_worked_out(flip_outer, flip_hole):
     outer = SQUARE[::-1] if flip_outer else SQUARE
