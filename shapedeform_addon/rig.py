@@ -346,7 +346,8 @@ def pose(obj, depsgraph=None, final=None):
         positions = rig.solve(frames, budgets.render_iterations if final else budgets.iterations)
         points = rig.cage_points(positions)
     except (ValueError, np.linalg.LinAlgError, FloatingPointError) as err:
-        raise RigError(f"'{owner.name}': {_in_interface_terms(err)}") from None
+        far = _far_handle(rig, frames) if isinstance(err, FloatingPointError) else ""
+        raise RigError(f"'{owner.name}': {_in_interface_terms(err)}{far}") from None
     if not np.all(np.isfinite(points)):
         raise RigError(f"'{owner.name}': the solve gave non-finite positions{_far_handle(rig, frames)}")
     rig.settled = rig.settled or final

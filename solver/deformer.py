@@ -59,6 +59,12 @@ class Solution:
     factorizations: int = 0
 
 
+def _area_set_by_handles(graph, unknowns):
+    """Whether the handles alone set the shape's area: no boundary point is free, and some
+    island is held by several points (islands at rest or carried by one point keep theirs)."""
+    return not np.isin(graph.boundary, unknowns.free).any() and bool(np.any(unknowns.held_by > 1))
+
+
 class Deformer:
     """The paper's deformer for one graph and one set of handles.
 
@@ -148,10 +154,10 @@ class Deformer:
         self.free = self.unknowns.free
         self._folds = self._area = None
         self._starts = []
-        if self.preserve_area and not np.isin(graph.boundary, self.free).any():
-            # Every point a handle included: the targets alone would set the area.
+        if self.preserve_area and _area_set_by_handles(graph, self.unknowns):
             raise ValueError("preserve_area needs a boundary point that can move: every boundary point is "
-                             "a handle or lies on an island without handles, which stays at rest")
+                             "a handle or lies on an island without handles, which stays at rest, or held by "
+                             "one handle point, which it follows unturned")
         if len(self.free):
             self._build(weights, newton, CoarseCopies() if coarse_copies is None else coarse_copies, stiffness)
 
@@ -182,7 +188,12 @@ class Deformer:
         coarse_normalised = self.energy.density_normalised
 
         def make_deformer(coarse_graph, coarse_handles):
-            return Deformer(coarse_graph, coarse_handles, weights, self.preserve_area, newton=True,
+            # A coarse copy all of whose boundary points lie nearest handles cannot hold the area
+            # (QA: such a handle set was refused): its pose is only a start, which the solve
+            # projects onto the rest area.
+            preserve_area = self.preserve_area and not _area_set_by_handles(
+                coarse_graph, Unknowns(coarse_graph, coarse_handles))
+            return Deformer(coarse_graph, coarse_handles, weights, preserve_area, newton=True,
                             prevent_flips=self.prevent_flips, options=options,
                             normalise_density=coarse_normalised)
 
@@ -224,11 +235,10 @@ class Deformer:
                 raise ValueError(f"initial must have shape {rest.shape}, got {positions.shape}")
             if not np.all(np.isfinite(positions)):
                 raise ValueError("initial has non-finite coordinates (NaN or inf)")
-        else:  # every free point is set below; fixed ones are handles or resting islands
+        else:  # every free point is set below; fixed ones are handles, resting or carried islands
             positions = rest.copy()
-        resting = self.unknowns.resting
-        positions[resting] = rest[resting]
         positions[self.handles] = targets
+        self.unknowns.place(positions, rest)
         if initial is not None or not self._starts:
             return [positions]
         candidates = []
@@ -264,6 +274,8 @@ class Deformer:
         ValueError
             Targets of the wrong shape or not finite; with ``preserve_area``, no pose with the rest
             area found near the start.
+        FloatingPointError
+            Targets so far from the shape (about 1e90 of its sizes) that the solve overflows.
         """
         # A solve keeps its working state on the deformer, and the factorisation releases the
         # interpreter's lock: two threads solving at once got each other's poses, then crashed
@@ -306,6 +318,8 @@ class Deformer:
             raise ValueError(f"the deformation system is singular ({error}): the weights or handles "
                              "leave part of the shape free to move without changing the energy") from None
         positions[self.free] = result.v.reshape(2, -1).T + origin
+        if not np.all(np.isfinite(positions)):  # QA: targets 1e90 sizes away came back NaN, unsaid
+            raise FloatingPointError("the solve gave non-finite positions")
         return Solution(positions, result.iterations, result.energies, result.converged, result.refreshes)
 
     # The objective the optimiser minimises (solver.optimizer.minimise), for the fixed points

@@ -55,25 +55,20 @@ class SimilarityStart:
         diagonal = normal.diagonal()
         tiny = 1e-12 * (float(diagonal.max()) if len(diagonal) else 1.0)
         normal = normal + tiny * identity(normal.shape[0], format="csc")
-        # The pull is what settles turns and scales the handles leave open (an island held by a
-        # single point): towards the rest moved as the island's handles move on average, which
-        # the similarity energy has at its minimum too, so such an island is carried without
-        # turning (pulled towards the rest where it was, it shrank and turned, 139 degrees on a
-        # drag of its size). Solved about the rest shape's centre: far from the origin the
-        # pull's rounding turned a shape 1e6 times smaller than its offset by more than its size.
+        # The pull settles what the handles leave open (islands held by one point are fixed,
+        # carried by it: solver.unknowns): towards the rest moved as the island's handles move
+        # on average, which the similarity energy has at its minimum too. Solved about the rest
+        # shape's centre: far from the origin the pull's rounding turned a shape 1e6 times
+        # smaller than its offset by more than its size.
         self._origin = box_centre(graph.points)
         self._tiny = tiny
         self._rest = graph.points
         self._rest_free = graph.points[free] - self._origin
         _, island = connected_components(coo_matrix(
             (np.ones(len(graph.edges)), (graph.edges[:, 0], graph.edges[:, 1])), shape=(n, n)), directed=False)
-        self._handles = unknowns.fixed[~unknowns.resting[unknowns.fixed]]
+        self._handles = unknowns.handles
         self._handle_island, self._free_island = island[self._handles], island[free]
         self._islands = int(island.max()) + 1 if n else 0
-        held_by = np.bincount(self._handle_island, minlength=self._islands)
-        self._single_free = held_by[self._free_island] == 1
-        self._only_handle = np.zeros(self._islands, dtype=np.int64)  # per island: its handle, where one
-        self._only_handle[self._handle_island] = np.arange(len(self._handles))
         self._factor = qdldl.Solver(triu(normal, format="csc"), upper=True)
 
     def _pull(self, positions, rest):
@@ -97,12 +92,6 @@ class SimilarityStart:
         positions = positions.copy()
         positions[self._free, 0] = free[:k] + origin[0]
         positions[self._free, 1] = free[k:] + origin[1]
-        # An island held by one point is free to turn about it: only the pull settles that,
-        # too weakly to carry it rigidly to more than about 1e-4 of its size. The rest moved
-        # with its handle is the minimum the pull picks, exactly.
-        single = self._single_free
-        positions[self._free[single]] = self._rest[self._free[single]] + \
-            (positions[self._handles] - self._rest[self._handles])[self._only_handle[self._free_island[single]]]
         return positions
 
 

@@ -1,7 +1,8 @@
 """Which graph points a solve moves, and the split of every linear map into free and fixed parts.
 
-Handles are hard constraints, and a connected part of the graph with no handle stays at rest;
-both are *fixed*, the rest are *free*. A solve iterates on the free points' coordinates stacked
+Handles are hard constraints, a connected part of the graph with no handle stays at rest, and
+one held by a single handle point is carried with it, unturned (it could turn about the point at
+no cost, so no solve would settle it); all these are *fixed*, the rest are *free*. A solve iterates on the free points' coordinates stacked
 ``v = [x; y]`` (length ``2 f``). Every term that is linear in the positions (the paper's rows
 ``A``, the fold penalty's triangle edges) splits the same way: ``M V = M_c c + [M_f 0; 0 M_f] v``
 with ``M V`` kept coordinate-major. :meth:`Unknowns.split` makes that split, once for all of them.
@@ -29,21 +30,40 @@ class Unknowns:
     free : (f,) int64 ndarray
         Points the solve moves.
     fixed : (c,) int64 ndarray
-        Handles and the points of islands without handles.
+        Handles and the points of islands without handles or held by one handle point.
     resting : (n,) bool ndarray
         Points of islands without handles: they stay at rest.
+    handles : (h,) int64 ndarray
+        The handles, as given.
+    held_by : (k,) int64 ndarray
+        How many handle points each island (``graph.components()``'s label) has.
+    carrier : (n,) int64 ndarray
+        For each point of an island held by one handle point, that point (-1 elsewhere, and on
+        the handle itself): it moves by its carrier's displacement, rigidly.
     """
 
     def __init__(self, graph, handles):
+        self.handles = handles = np.asarray(handles, dtype=np.int64)
         fixed = np.zeros(graph.n, dtype=bool)
         fixed[handles] = True
         labels = graph.components()
-        anchored = np.zeros(labels.max() + 1, dtype=bool)
-        anchored[labels[handles]] = True
-        self.resting = ~anchored[labels]
-        fixed |= self.resting
+        self.held_by = held_by = np.bincount(labels[handles], minlength=labels.max() + 1)
+        self.resting = held_by[labels] == 0
+        only = np.full(len(held_by), -1, dtype=np.int64)
+        single = held_by[labels[handles]] == 1
+        only[labels[handles[single]]] = handles[single]
+        self.carrier = np.where(fixed, -1, only[labels])
+        fixed |= self.resting | (self.carrier >= 0)
         self.free = np.flatnonzero(~fixed)
         self.fixed = np.flatnonzero(fixed)
+
+    def place(self, positions, rest):
+        """Put the points that are fixed but not handles where they belong (in place): at rest,
+        or carried by their one handle point's displacement, given the handles' places in
+        ``positions`` (n, 2)."""
+        positions[self.resting] = rest[self.resting]
+        carried = np.flatnonzero(self.carrier >= 0)
+        positions[carried] = rest[carried] + positions[self.carrier[carried]] - rest[self.carrier[carried]]
 
     def split(self, matrix):
         """Split a linear map of the positions into its action on ``v`` and on the fixed points.

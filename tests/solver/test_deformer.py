@@ -719,9 +719,32 @@ def test_an_island_held_by_one_point_is_carried_without_turning(options):
         for trial in range(4):
             held = [int(rng.choice(part)) for part in islands]
             drags = rng.uniform(-1.0, 1.0, (len(islands), 2)) * graph.size * (trial > 0)
-            pose = solver.Deformer(graph, held, **options).solve(rest[held] + drags).positions
+            solution = solver.Deformer(graph, held, **options).solve(rest[held] + drags)
+            assert solution.converged  # QA: the free turn kept it from stopping, 30 iterations on
             for part, drag in zip(islands, drags):
-                assert np.abs(pose[part] - rest[part] - drag).max() <= 1e-9 * graph.size
+                assert np.abs(solution.positions[part] - rest[part] - drag).max() <= 1e-9 * graph.size
+    # Beside an island pinned and dragged at its ends, which the solve still moves.
+    x = pair.points[:, 0]
+    ends = np.concatenate([np.flatnonzero(x < -0.9), np.flatnonzero((x > 0.9) & (x < 2.0))])
+    single = int(np.flatnonzero(x > 2.0)[0])
+    handles = np.append(ends, single)
+    targets = pair.points[handles] + np.where((pair.points[handles, 0] > 0.9)[:, None], [0.0, 0.5], 0.0)
+    targets[-1] = pair.points[single] + [1.0, 0.3]
+    solution = solver.Deformer(pair, handles, **options).solve(targets)
+    assert solution.converged
+    small = x > 2.0
+    assert np.abs(solution.positions[small] - pair.points[small] - [1.0, 0.3]).max() <= 1e-9 * pair.size
+
+
+def test_preserve_area_takes_handles_that_leave_a_coarse_copy_no_free_boundary():
+    """All but one to three of a square's boundary points held: every point of its coarse copy's
+    boundary lay nearest a handle, and the deformer refused, "preserve_area needs a boundary
+    point that can move", though the fine graph has one (QA). The area is kept exactly."""
+    graph = solver.build_graph([np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)])
+    for free in (1, 2, 3):
+        handles = graph.boundary[free:]
+        solution = solver.Deformer(graph, handles, preserve_area=True).solve((graph.points[handles] - 0.5) * 0.9 + 0.5)
+        assert graph.area(solution.positions) == pytest.approx(graph.area(), rel=1e-9)
 
 
 def test_one_deformer_solving_in_two_threads_gives_each_its_own_pose():

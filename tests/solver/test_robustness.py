@@ -124,3 +124,23 @@ def test_a_shape_too_thin_to_triangulate_is_refused_by_name():
     points[::2, 1] = 1e-17
     with pytest.raises(ValueError, match="too thin to triangulate"):
         filtered_delaunay(points, shapely.box(0.0, 0.0, 1.0, 1e-17))
+
+
+def test_a_solve_that_overflows_says_so_instead_of_returning_nan():
+    """Targets 1e90-1e150 shape sizes apart gave positions all NaN and no error (QA). Any
+    scale either solves to finite positions or raises FloatingPointError."""
+    import warnings
+
+    graph = solver.build_graph([np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)])
+    deformer = solver.Deformer(graph, [0, 10, 20])
+    raised = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for exponent in range(20, 161, 10):
+            try:
+                solution = deformer.solve(graph.points[[0, 10, 20]] * 10.0 ** exponent)
+            except FloatingPointError:
+                raised += 1
+                continue
+            assert np.all(np.isfinite(solution.positions)), exponent
+    assert raised > 0  # the scales that overflowed before still do, and say so
