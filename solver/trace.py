@@ -85,9 +85,18 @@ def trace_silhouette(image, level=0.5, tolerance=0.5, max_vertices=None, min_are
         A malformed image, or no pixel at or above ``level``.
     """
     values = coverage(image)
-    # A border of empty pixels closes every contour.
-    padded = np.pad(values, 1, mode="constant", constant_values=min(values.min(), level) - 1.0)
-    lines = contourpy.contour_generator(z=padded, line_type="Separate").lines(level)
+    # Traced just below the level, so pixels at it count (QA: a picture all of alpha 255 traced
+    # at 1 had none).
+    below = np.nextafter(level, -np.inf)
+    # A border of the emptiest pixel closes every contour, so a shape meets the image's edge as
+    # it meets an empty pixel inside (a border below every value pulled a shape touching the
+    # edge a sixth of a pixel in). Where no pixel is below the level, the border lies as far
+    # below it as the most opaque pixel lies above, so the contour runs along the edge.
+    empty = values.min()
+    if not empty < below:
+        empty = min(2.0 * level - values.max(), np.nextafter(below, -np.inf))
+    padded = np.pad(values, 1, mode="constant", constant_values=empty)
+    lines = contourpy.contour_generator(z=padded, line_type="Separate").lines(below)
     # contourpy places sample (r, c) at (x=c, y=r); pixel centres sit at +0.5, minus the pad.
     rings = [line[:-1] - 0.5 for line in lines if len(line) >= 4]
     if not rings:

@@ -138,12 +138,14 @@ def image_cutout(image, margin=1.0, level=1.0 / 255.0, tolerance=0.5, window=Non
     height, width = alpha.shape
     geometry = shape_geometry(rings)
     grown = geometry.buffer(margin, join_style="mitre", mitre_limit=2.0)
+    # Simplified before it is clipped: along the picture's edge the clip leaves no margin, and a
+    # simplification after it cut a corner off pixels there.
+    simplified = shapely.simplify(grown, 0.25 * margin, preserve_topology=True)
+    if not simplified.is_empty and simplified.is_valid:
+        grown = simplified
     clipped = polygonal_part(shapely.intersection(grown, _frame(width, height, window)))
     if clipped.is_empty:
         raise ValueError("no visible pixel of the picture lies in the part its UVs show")
-    simplified = shapely.simplify(clipped, 0.25 * margin, preserve_topology=True)
-    if not simplified.is_empty and simplified.is_valid:
-        clipped = simplified
     return [ring for island in geometry_rings(clipped) for ring in island]
 
 

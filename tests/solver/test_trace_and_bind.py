@@ -121,3 +121,23 @@ def test_a_mask_of_zeros_and_ones_traces_whatever_its_integer_type(convert):
 def test_an_integer_image_without_a_full_scale_is_refused_by_name():
     with pytest.raises(ValueError, match="integer image of type int64 .*no full scale"):
         solver.trace_silhouette(np.full((8, 8), 255, dtype=np.int64))
+
+
+def test_pixels_at_the_level_are_traced_and_the_images_edge_is_traced_on_it():
+    """"At or above level": a picture all of alpha 255 traced at 1, or pixels of 0.5 at 0.5,
+    had nothing traced (QA). A shape touching the image's edge was traced a sixth of a pixel
+    inside it: it meets the edge as it meets an empty pixel inside, or runs along it."""
+    from solver.shapes import shape_geometry
+
+    rgba = np.zeros((10, 10, 4), np.uint8)
+    rgba[2:8, 2:8, 3] = 255
+    half = np.where(rgba[..., 3] > 0, 0.5, 0.0)
+    for image, level in ((rgba, 1.0), (half, 0.5)):
+        assert shape_geometry(solver.trace_silhouette(image, level=level, tolerance=0)).area > 20
+    full = np.ones((10, 30), bool)
+    corner = np.zeros((10, 30), bool)
+    corner[:4, :6] = True
+    for mask in (full, corner):
+        alone = shape_geometry(solver.trace_silhouette(mask, tolerance=0))
+        padded = shape_geometry([ring - 1 for ring in solver.trace_silhouette(np.pad(mask, 1), tolerance=0)])
+        assert alone.symmetric_difference(padded).area < 1e-9
