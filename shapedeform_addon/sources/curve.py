@@ -74,9 +74,11 @@ def _rings_and_strokes(curve, flat):
             k = len(spline.points)
             line = flat[start:start + k]
             start += k
-        if spline.use_cyclic_u and k >= 2:
+        if k < 2:
+            continue  # a lone point: Blender draws nothing of it (a Bezier one looped round its handles, QA)
+        if spline.use_cyclic_u:
             rings.append(line)
-        elif len(line):
+        else:
             strokes.append(line)
     return rings, strokes
 
@@ -140,6 +142,9 @@ def prepare_splines(obj, curve, settings):
         plane = fit_plane(rest, line_normal=(0.0, 0.0, 1.0))
         flat = plane.to_2d(rest)
         rings, strokes = _rings_and_strokes(curve, flat)
+        if not rings and not strokes:
+            raise RigError(f"'{obj.name}' cannot be rigged: each of its splines has a single point, of which "
+                           "Blender draws no line")
         # A closed spline round no area (its points on one line) is left out; when all are and
         # no spline is open, the graph refuses them.
         areas = with_area(rings)

@@ -118,21 +118,34 @@ def test_curve_with_no_area_is_refused(addon, count):
 def test_a_closed_spline_duplicated_in_place_binds_as_one(addon, fill_mode):
     """Shift+D then Esc in Edit Mode leaves a closed spline's copy on itself: Bind refused it,
     "the rings enclose no area" (each copy a hole in the other), though Blender draws it."""
-    curve = bpy.data.curves.new("Shape", "CURVE")
-    curve.dimensions, curve.fill_mode = "2D", fill_mode
-    for _ in range(2):
-        spline = curve.splines.new("BEZIER")
-        spline.bezier_points.add(3)
-        for point, angle in zip(spline.bezier_points, np.arange(4) * np.pi / 2):
-            point.co = (np.cos(angle), np.sin(angle), 0.0)
-            point.handle_left_type = point.handle_right_type = "AUTO"
-        spline.use_cyclic_u = True
-    obj = bpy.data.objects.new("Shape", curve)
-    bpy.context.scene.collection.objects.link(obj)
-    checks.select_only(obj)
+    circle = np.column_stack([np.cos(np.arange(16) * np.pi / 8), np.sin(np.arange(16) * np.pi / 8)])
+    obj = poly_curve("Shape", [(circle, True), (circle, True)])
+    obj.data.fill_mode = fill_mode
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     cage = checks.mesh_points(checks.cage(obj))
     assert np.ptp(cage[:, :2], axis=0) == pytest.approx([2.0, 2.0], abs=0.02)  # the whole disc
+
+
+@pytest.mark.parametrize("cyclic", [False, True])
+def test_a_bezier_spline_of_one_point_is_no_shape(addon, cyclic):
+    """Blender draws no line of a spline of one point (Add > Curve > Bezier, one point deleted):
+    Bind rigged a graph of 400 points round its handles. Alone it is refused in the user's
+    words; beside a shape it is left out."""
+    obj = poly_curve("Dot", [])
+    lone = obj.data.splines.new("BEZIER")
+    lone.bezier_points[0].co = (3.0, 0.0, 0.0)
+    lone.bezier_points[0].handle_left, lone.bezier_points[0].handle_right = (2.0, -1.0, 0.0), (4.0, 1.0, 0.0)
+    lone.use_cyclic_u = cyclic
+    before = checks.snapshot()
+    with pytest.raises(RuntimeError, match="each of its splines has a single point, of which Blender draws no line"):
+        bpy.ops.shapedeform.bind()
+    assert checks.snapshot() == before
+    square = obj.data.splines.new("POLY")
+    square.points.add(3)
+    square.points.foreach_set("co", np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [1, 1, 0, 1], [-1, 1, 0, 1]], float).ravel())
+    square.use_cyclic_u = True
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert checks.mesh_points(checks.cage(obj))[:, 0].max() == pytest.approx(1.0, abs=1e-6)
 
 
 def test_a_closed_spline_round_no_area_beside_the_shape_is_left_out(addon):
