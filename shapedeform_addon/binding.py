@@ -17,7 +17,8 @@ from . import bake, duplicates, handles, rig, rig_format, sources
 from .errors import RigError
 
 
-# Modifiers that add geometry away from the object's own (a mirrored half, array copies).
+# Modifiers that add geometry away from the object's own (a mirrored half, array copies); a
+# Geometry Nodes modifier may too.
 GENERATING = {"MIRROR", "ARRAY", "SCREW", "BOOLEAN", "GREASE_PENCIL_MIRROR", "GREASE_PENCIL_ARRAY"}
 
 
@@ -65,7 +66,10 @@ def bind(obj):
     notes = [prepared.advice] if prepared.advice else []
     if copied:
         notes.append("removed the Shape Deform modifier copied from another rig")
-    adding = [m.name for m in obj.modifiers if m.type in GENERATING and (m.show_viewport or m.show_render)]
+    # A Geometry Nodes modifier of the user's may add geometry too (QA: a copy made by one was
+    # rigged without a word, where Mirror's was told).
+    adding = [m.name for m in obj.modifiers if (m.type in GENERATING or m.type == "NODES" and m not in copied)
+              and (m.show_viewport or m.show_render)]
     if adding:
         # The rig is built from the object's own data; the rig's modifier comes after these.
         notes.append(f"the rig was built without what {', '.join(map(repr, adding))} add"

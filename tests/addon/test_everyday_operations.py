@@ -1832,17 +1832,31 @@ def test_binding_an_object_given_another_rigs_modifier_gives_it_its_own(addon, t
     np.testing.assert_allclose(evaluated(second), rest, atol=1e-5)
 
 
-def test_binding_over_a_mirror_says_the_mirrored_half_is_not_rigged(addon, tmp_path, capfd):
-    """Half a character modelled with a Mirror modifier: the rig is built from the object's own
-    half, and Bind says so and what to do (it bound silently, and a handle on the mirrored half
-    levered the seam)."""
+@pytest.mark.parametrize("kind", ["MIRROR", "NODES"])
+def test_binding_over_a_mirror_says_the_mirrored_half_is_not_rigged(addon, tmp_path, capfd, kind):
+    """Half a character modelled with a Mirror modifier, or copied by a Geometry Nodes modifier
+    of the user's: the rig is built from the object's own half, and Bind says so and what to do
+    (it bound silently, and a handle on the mirrored half levered the seam; QA: a Geometry Nodes
+    copy was not told)."""
     obj = make_mesh(tmp_path)
-    obj.modifiers.new("Mirror", "MIRROR")
+    modifier = obj.modifiers.new("Copies", kind)
+    if kind == "NODES":
+        group = bpy.data.node_groups.new("Copies", "GeometryNodeTree")
+        group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+        group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+        given, shifted = group.nodes.new("NodeGroupInput"), group.nodes.new("GeometryNodeTransform")
+        joined = group.nodes.new("GeometryNodeJoinGeometry")
+        shifted.inputs["Translation"].default_value = (3.0, 0.0, 0.0)
+        group.links.new(given.outputs[0], shifted.inputs[0])
+        group.links.new(given.outputs[0], joined.inputs[0])
+        group.links.new(shifted.outputs[0], joined.inputs[0])
+        group.links.new(joined.outputs[0], group.nodes.new("NodeGroupOutput").inputs[0])
+        modifier.node_group = group
     bpy.context.view_layer.objects.active = obj
     capfd.readouterr()
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     out = capfd.readouterr()
-    assert "'Mirror' adds" in out.out + out.err and "apply them before binding" in out.out + out.err
+    assert "'Copies' adds" in out.out + out.err and "apply them before binding" in out.out + out.err
 
 
 def test_playback_solves_a_rig_whose_handles_stay_put_once(addon, tmp_path):
