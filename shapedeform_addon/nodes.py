@@ -82,6 +82,7 @@ CAGE_INPUT, RIGGED_INPUT = "Cage", "Rigged Layers"
 LEGACY_OWNER_INPUT = "Owner"
 REFINE_INPUT, ORDER_INPUT = "Refine", "Stroke Order"
 REFINE_MOST = 6  # the most times Refine subdivides
+CURVE_TYPE_BEZIER = 2  # the built-in curve_type attribute's value for Bezier curves
 KEPT_INPUTS = (CAGE_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT)
 
 
@@ -447,6 +448,11 @@ def _set_bezier_handles(b, cage, curve, selection, left, right, point):
     line, where each handle's own nearest triangle turned them apart (a kink of 7 degrees in a
     circle dragged by 0.6 of its radius)."""
     given = drawing = curve
+    # Only Bezier strokes have handles: a poly stroke's points (nearly every drawing's) are not
+    # mapped twice more (review: twice the evaluation time of a 10,720-point drawing).
+    curve_type = b.node("GeometryNodeInputNamedAttribute", {"Name": "curve_type"}, data_type="INT").outputs[0]
+    bezier = b.node("FunctionNodeCompare", {"A": curve_type, "B": CURVE_TYPE_BEZIER}, data_type="INT",
+                    operation="EQUAL").outputs[0]
     for side, position in (("LEFT", left), ("RIGHT", right)):
         mapped, free = cage.mapped(position, about=point), _free(b, selection, side)
         curve = b.node("GeometryNodeSetCurveHandlePositions",
@@ -456,8 +462,8 @@ def _set_bezier_handles(b, cage, curve, selection, left, right, point):
         # handles are written as the attributes they are, on drawings alone (a mesh would get
         # attributes of those names).
         drawing = b.node("GeometryNodeStoreNamedAttribute",
-                         {"Geometry": drawing, "Selection": free, "Name": f"handle_{side.lower()}",
-                          "Value": mapped},
+                         {"Geometry": drawing, "Name": f"handle_{side.lower()}", "Value": mapped,
+                          "Selection": b.node("FunctionNodeBooleanMath", [free, bezier], operation="AND").outputs[0]},
                          data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
     layers = b.node("GeometryNodeAttributeDomainSize", {"Geometry": given},
                     component="GREASEPENCIL").outputs["Layer Count"]
