@@ -297,36 +297,20 @@ def _interior_points(geometry, boundary, spacing):
 def _inset(geometry, distance, **style):
     """``geometry`` shrunk by ``distance`` > 0 (a negative buffer, ``style`` as shapely's).
 
-    Parts that certainly hold no disc of that radius leave nothing, and are dropped first: GEOS
-    took 7 s to shrink a scattered picture's 126 lacy clusters of specks to nothing, as every
-    offset ring crossed hundreds of others."""
+    Parts that hold no disc of that radius leave nothing, and are dropped first: GEOS took 7 s
+    to shrink a scattered picture's 126 lacy clusters of specks to nothing, as every offset ring
+    crossed hundreds of others. The largest disc a part holds is found to within a quarter of
+    the radius (its centre within that of the best one's, so its radius too), a fraction of a
+    millisecond for an ordinary shape."""
     parts = shapely.get_parts(geometry)
     bounds = shapely.bounds(parts)
     wide = np.flatnonzero(np.min(bounds[:, 2:] - bounds[:, :2], axis=1) > 2.0 * distance)
-    holding = wide[[_may_hold_disc(part, distance) for part in parts[wide]]]
+    slack = 0.25 * distance
+    reach = shapely.length(shapely.maximum_inscribed_circle(parts[wide], slack)) if len(wide) else np.empty(0)
+    holding = wide[reach + slack >= distance]
     if len(holding) == len(parts):
         return geometry.buffer(-distance, **style)
     return shapely.MultiPolygon(list(parts[holding])).buffer(-distance, **style)
-
-
-def _may_hold_disc(polygon, radius):
-    """False where ``polygon`` certainly holds no disc of ``radius``.
-
-    The centre of the largest disc it holds lies within ``h / sqrt(2)`` of a node of a lattice
-    of step ``h``, inside the polygon, whose distance to the boundary is at least the disc's
-    radius less that; a node's distance to the nearest boundary vertex is at least its distance
-    to the boundary. So the largest radius is below the nodes' greatest vertex distance plus
-    ``h / sqrt(2)``.
-    """
-    step = 0.5 * radius
-    x0, y0, x1, y1 = polygon.bounds
-    xs, ys = np.meshgrid(np.arange(x0, x1 + step, step), np.arange(y0, y1 + step, step))
-    inside = shapely.contains_xy(polygon, xs.ravel(), ys.ravel())
-    if not inside.any():
-        return False
-    nodes = np.column_stack([xs.ravel()[inside], ys.ravel()[inside]])
-    reach, _ = cKDTree(shapely.get_coordinates(polygon.boundary)).query(nodes)
-    return reach.max() + step * np.sqrt(0.5) >= radius
 
 
 def _smooth(points, first_interior, triangles, geometry, rounds=3, step=0.5):
