@@ -121,6 +121,7 @@ def test_the_inset_that_skips_thin_parts_is_the_whole_buffer(seed, horse_rings):
         geometry = shape_geometry(rings)
         size = np.ptp(np.concatenate(rings), axis=0).max()
         for distance in size * np.array([0.005, 0.02, 0.05]):
-            whole = geometry.buffer(-distance)
-            inset = _inset(geometry, distance)
-            assert shapely.symmetric_difference(whole, inset).area <= 1e-9 * size * size
+            for style in ({}, {"join_style": "mitre", "mitre_limit": 2.0}):  # as the graph's two insets
+                whole = geometry.buffer(-distance, **style)
+                inset = _inset(geometry, distance, **style)
+                assert shapely.symmetric_difference(whole, inset).area <= 1e-9 * size * size
