@@ -73,7 +73,7 @@ class Deformer:
     graph : solver.Graph
     handles : (h,) array_like of int
         Indices of graph points that are moved to targets. A connected part of the graph with
-        no handle stays at rest.
+        no handle stays at rest; one with a single handle point moves with it, unturned.
     weights : dict, optional
         Weights of the energy terms ``"laplacian"``, ``"mvc"`` and ``"edge"``.
     preserve_area : bool
@@ -119,7 +119,8 @@ class Deformer:
     ------
     ValueError
         Handles out of range or repeated, bad weights or stiffness, or ``preserve_area`` with no boundary point
-        free to move (all are handles or on islands without handles): the area would be fixed.
+        free to move (all are handles, or on islands without handles or with one handle point) and
+        an island held by several points: the targets would set the area.
     """
 
     def __init__(self, graph, handles, weights=None, preserve_area=False, newton=None,
@@ -261,9 +262,10 @@ class Deformer:
             Stop once the next step would move no point more than ``tolerance * graph.size``.
             ``0.0`` runs exactly ``max_iterations``. Default ``options.tolerance``.
         initial : (n, 2) array_like, optional
-            Warm start. By default the lower-energy of the as-similar-as-possible pose and a
-            solved coarse copy's pose for the targets (see ``newton``), so the result depends on
-            the targets alone.
+            Warm start (its points on islands at rest or moved by one handle point are not
+            read). By default the lower-energy of the as-similar-as-possible pose and a solved
+            coarse copy's pose for the targets (see ``newton``), so the result depends on the
+            targets alone.
 
         Returns
         -------
