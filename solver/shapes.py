@@ -99,8 +99,9 @@ def shape_geometry(rings):
     """Turn rings into one valid shapely geometry: islands with their holes.
 
     Nesting is worked out from containment, never from orientation: a ring inside an odd
-    number of other rings is a hole. A ring repeated exactly counts once. Overlapping islands are merged. A self-intersecting ring
-    is repaired (a figure eight becomes two lobes) when its repair keeps area.
+    number of other rings is a hole. A ring repeated exactly counts once. Overlapping islands
+    are merged. A self-intersecting ring is repaired (a figure eight becomes two lobes) when
+    its repair keeps area.
 
     Parameters
     ----------

@@ -16,8 +16,7 @@ import hashlib
 
 import numpy as np
 import qdldl
-from scipy.sparse import coo_matrix, identity, triu
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse import identity, triu
 from scipy.spatial import cKDTree
 
 from .binding import bind
@@ -64,8 +63,7 @@ class SimilarityStart:
         self._tiny = tiny
         self._rest = graph.points
         self._rest_free = graph.points[free] - self._origin
-        _, island = connected_components(coo_matrix(
-            (np.ones(len(graph.edges)), (graph.edges[:, 0], graph.edges[:, 1])), shape=(n, n)), directed=False)
+        island = unknowns.islands
         self._handles = unknowns.handles
         self._handle_island, self._free_island = island[self._handles], island[free]
         self._islands = int(island.max()) + 1 if n else 0

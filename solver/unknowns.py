@@ -2,8 +2,8 @@
 
 Handles are hard constraints, a connected part of the graph with no handle stays at rest, and
 one held by a single handle point is carried with it, unturned (it could turn about the point at
-no cost, so no solve would settle it); all these are *fixed*, the rest are *free*. A solve iterates on the free points' coordinates stacked
-``v = [x; y]`` (length ``2 f``). Every term that is linear in the positions (the paper's rows
+no cost, so no solve would settle it); all these are *fixed*, the rest are *free*. A solve
+iterates on the free points' coordinates stacked ``v = [x; y]`` (length ``2 f``). Every term that is linear in the positions (the paper's rows
 ``A``, the fold penalty's triangle edges) splits the same way: ``M V = M_c c + [M_f 0; 0 M_f] v``
 with ``M V`` kept coordinate-major. :meth:`Unknowns.split` makes that split, once for all of them.
 """
@@ -35,8 +35,10 @@ class Unknowns:
         Points of islands without handles: they stay at rest.
     handles : (h,) int64 ndarray
         The handles, as given.
+    islands : (n,) int ndarray
+        Each point's island (``graph.components()``).
     held_by : (k,) int64 ndarray
-        How many handle points each island (``graph.components()``'s label) has.
+        How many handle points each island has.
     carrier : (n,) int64 ndarray
         For each point of an island held by one handle point, that point (-1 elsewhere, and on
         the handle itself): it moves by its carrier's displacement, rigidly.
@@ -46,7 +48,7 @@ class Unknowns:
         self.handles = handles = np.asarray(handles, dtype=np.int64)
         fixed = np.zeros(graph.n, dtype=bool)
         fixed[handles] = True
-        labels = graph.components()
+        self.islands = labels = graph.components()
         self.held_by = held_by = np.bincount(labels[handles], minlength=labels.max() + 1)
         self.resting = held_by[labels] == 0
         only = np.full(len(held_by), -1, dtype=np.int64)
