@@ -222,14 +222,21 @@ def _add_animation(source, block, wanted):
         if number is not None and strips:  # it blends over them so (with none, it plays as it is)
             source.parts.append(("action", number, animation.action_blend_type, animation.action_extrapolation))
             source.add("action influence", animation.action_influence)
-    _add_nla(source, animation, strips, played, wanted)
+    sounding = _add_nla(source, animation, strips, played, wanted)
+    if animation.action is not None:
+        sounding.add((animation.action, animation.action_slot))
     driven = [curve for curve in animation.drivers if wanted(curve.data_path)]
     curves = [curve for _, keyed in played.values() for curve in keyed] + driven
     for curve in curves:
         _add_curve(source, curve)
         if curve.driver is not None:
             _add_driver(source, curve.driver)
-    return {(curve.data_path, curve.array_index) for curve in curves}
+    # A curve that does not play (muted, no keys, in a muted track or with the NLA off) sets
+    # nothing: its property's own value counts (QA: a muted handle moved by hand left the bake
+    # up to date, 0.5 off).
+    playing = [curve for key, (_, keyed) in played.items() if key in sounding for curve in keyed] + driven
+    return {(curve.data_path, curve.array_index) for curve in playing
+            if not curve.mute and (curve.driver is not None or len(curve.keyframe_points) or len(curve.modifiers))}
 
 
 def _played(played, holder, wanted):
@@ -250,10 +257,14 @@ def _played(played, holder, wanted):
 def _add_nla(source, animation, strips, played, wanted):
     """Add how ``animation``'s NLA (``strips``, :func:`.compat.nla_strips`) plays the actions
     that set wanted properties: the tracks holding a strip of one, whole (each strip's settings
-    and action's number in ``played``)."""
+    and action's number in ``played``). Returns the (action, slot) pairs of its strips that
+    play (the NLA on, the track unmuted and soloed where one is, the strip unmuted)."""
     tracks = {}
     for track, strip in strips:
         tracks.setdefault(track, []).append(strip)
+    solo = any(track.is_solo for track in animation.nla_tracks)
+    sounding = {(strip.action, strip.action_slot) for track, strip in strips
+                if animation.use_nla and not track.mute and (track.is_solo or not solo) and not strip.mute}
     counted = False
     for i, (track, its_strips) in enumerate(tracks.items()):
         numbers = [_played(played, strip, wanted) for strip in its_strips]
@@ -268,7 +279,8 @@ def _add_nla(source, animation, strips, played, wanted):
                 _add_curve(source, curve)
             _add_settings(source, "strip", strip, skip=_STRIP_CONTROLS)
     if counted:  # a solo track elsewhere keeps these from playing
-        source.parts.append(("nla", animation.use_nla, any(track.is_solo for track in animation.nla_tracks)))
+        source.parts.append(("nla", animation.use_nla, solo))
+    return sounding
 
 
 def _in_order(curves):
