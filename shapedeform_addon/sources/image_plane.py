@@ -46,27 +46,25 @@ class Picture(NamedTuple):
 
 def _picture(obj):
     """The :class:`Picture` of the material the quad's face shows whose image has alpha, or
-    None: the one whose alpha is wired to something (a shader's Alpha), else the first. An image
-    Blender could not load (its file missing, a sequence no frame of which was shown yet) has no
-    channels to tell: it counts, so Bind can say what is wrong rather than rig the bare quad."""
+    None: the first whose alpha the material reads (:func:`_alpha_reader`: a shader's Alpha),
+    else the first. An image Blender could not load (its file missing, a sequence no frame of
+    which was shown yet) has no channels to tell: it counts, so Bind can say what is wrong
+    rather than rig the bare quad."""
     found = _pictures(obj)
-    return found[0] if found else None
+    return min(found, key=lambda picture: _alpha_reader(picture) is None) if found else None
 
 
 def _pictures(obj):
     """The :class:`Picture` s with alpha of the material the quad's face shows, in its tree and in
-    the node groups it uses, those whose alpha is wired to something first."""
+    the node groups it uses (a group used twice gives its pictures twice)."""
     if not obj.material_slots:
         return []
     material = obj.material_slots[_material_index(obj)].material
     if material is None or material.node_tree is None:
         return []
-    found = []
-    for picture in _image_nodes(material.node_tree, ()):
-        image = picture.node.image
-        if image is not None and image.channels in (0, 4) and image.alpha_mode != "NONE":
-            found.append((not picture.node.outputs["Alpha"].is_linked, len(found), picture))
-    return [picture for *_, picture in sorted(found)]
+    return [picture for picture in _image_nodes(material.node_tree, ())
+            if picture.node.image is not None and picture.node.image.channels in (0, 4)
+            and picture.node.image.alpha_mode != "NONE"]
 
 
 def _image_nodes(tree, groups):
@@ -86,8 +84,8 @@ _FILTER_MARGIN = {"Closest": 1.0, "Linear": 1.0, "Cubic": 2.5, "Smart": 2.5}
 
 
 def _image(obj):
-    picture = _picture(obj)
-    return None if picture is None else picture.node.image
+    found = _pictures(obj)  # cheap: is_image_plane is asked by operators' polls
+    return found[0].node.image if found else None
 
 
 def _alpha(obj, node):
@@ -159,7 +157,8 @@ def _picture_uv_layer(quad, picture):
     Mapping node that is not the identity, a Texture Coordinate output other than UV) makes what
     is cut out differ from what renders.
     """
-    named, changed = "", ""
+    # A Sphere, Tube or Box projection maps the coordinates itself (QA: not told).
+    named, changed = "", picture.node.name if picture.node.projection != "FLAT" else ""
     links, groups = picture.node.inputs["Vector"].links, picture.groups
     while links:
         link = links[0]
@@ -176,7 +175,10 @@ def _picture_uv_layer(quad, picture):
             groups = (*groups, source)
             continue
         if source.type == "GROUP_INPUT" and groups:  # out to what feeds the group node
-            links, groups = groups[-1].inputs[link.from_socket.identifier].links, groups[:-1]
+            outer = groups[-1].inputs[link.from_socket.identifier]
+            if not outer.is_linked and not _implicit(groups[-1], link.from_socket.identifier):
+                changed = changed or groups[-1].name  # an unlinked input feeds its value (QA: texel 0, 0)
+            links, groups = outer.links, groups[:-1]
             continue
         if source.type == "MAPPING" and not _is_identity(source):
             changed = changed or source.name
@@ -186,6 +188,14 @@ def _picture_uv_layer(quad, picture):
         links = vectors[0].links if vectors else ()
     layer = quad.uv_layers.get(named) or next(layer for layer in quad.uv_layers if layer.active_render)
     return layer, changed
+
+
+def _implicit(group_node, identifier):
+    """Whether the group input ``identifier`` of ``group_node``, unlinked, passes on the
+    coordinates an unwired Vector reads (its value hidden) rather than its value."""
+    socket = next((item for item in group_node.node_tree.interface.items_tree
+                   if item.item_type == "SOCKET" and item.identifier == identifier), None)
+    return socket is not None and socket.hide_value
 
 
 def _is_identity(mapping):
@@ -215,7 +225,10 @@ def prepare(obj, settings):
     quad.loops.foreach_get("vertex_index", loop_vertices)
     picture_layer, changed = _picture_uv_layer(quad, picture)
     uv = _loop_uvs(picture_layer)
-    if node.extension in {"REPEAT", "MIRROR"}:  # a whole tile over shows the picture again (QA: refused)
+    # A tiled (UDIM) picture shows another picture on each tile, of which only 1001's pixels can
+    # be read (QA: another tile's plane was cut to 1001's alpha).
+    other_tile = node.image.source == "TILED" and bool(np.any(np.floor(uv.mean(axis=0)) != 0.0))
+    if node.extension in {"REPEAT", "MIRROR"} and node.image.source != "TILED":  # a whole tile over shows it again
         tile = np.floor(uv.mean(axis=0))  # the one holding most of the plane: UVs a hair past it stay
         mirrored = (node.extension == "MIRROR") & (tile % 2 == 1)  # odd tiles show it mirrored
         uv = np.where(mirrored, tile + 1.0 - uv, uv - tile)
@@ -235,9 +248,13 @@ def prepare(obj, settings):
         rings = [loop_points]
         notes = [f"nothing reads the alpha of its picture '{node.image.name}', so the whole plane is rigged, as "
                  "it renders (wire the picture's Alpha to the shader's to cut the plane to the picture)"]
+    elif other_tile:
+        rings = [loop_points]
+        notes = [f"'{node.image.name}' is a tiled (UDIM) picture shown on a tile other than 1001, whose pixels "
+                 "cannot be read: the whole plane is rigged"]
     else:
         rings, shown, notes = _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triangles)
-        notes.extend(_reading_notes(obj, node, changed))
+        notes.extend(_reading_notes(obj, picture, changed, picture_layer))
         # Clip and Extend show the picture once, however far the UVs reach (QA: a false warning).
         if node.extension in {"REPEAT", "MIRROR"} and not np.all((uv >= -1e-4) & (uv <= 1.0 + 1e-4)):
             notes.append("its UVs show the picture more than once: only the copy in the UV square is cut out")
@@ -284,6 +301,7 @@ def _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triang
     the picture the quad shows, and what Bind says about them ([str]); ``reader`` is
     :func:`_alpha_reader`'s answer."""
     alpha, advice = _alpha(obj, node)
+    alpha = np.nan_to_num(alpha, nan=0.0, posinf=1.0, neginf=0.0)  # QA: a float picture's NaN stopped Bind
     height, width = alpha.shape
     if width * height < 2:
         raise RigError(f"'{obj.name}': its image '{node.image.name}' is a single pixel: too small to cut a shape from")
@@ -350,10 +368,13 @@ def _cutout_notes(node, reader, alpha, window):
 def _alpha_reader(picture):
     """How the material reads :class:`Picture` ``picture``'s alpha: "" straight into a shader's
     Alpha (through reroutes and out of the groups it lies in; or a Mix Shader's factor over a
-    Transparent BSDF), None when nothing that reaches the material's output reads it (unwired,
-    muted, or into a shader left out), else the name of a node on the way that may change it."""
+    Transparent BSDF), None when nothing that reaches the material's output reads it (the
+    node or a group it lies in muted, its Alpha unwired or muted, or into a shader left out),
+    else the name of a node on the way that may change it."""
     node, groups = picture
-    shown = _feeding_output(groups[0].id_data if groups else node.id_data)
+    if node.mute or any(group.mute for group in groups):
+        return None  # QA: a muted picture renders the whole quad
+    reaching = {}
     changed = None
     todo = [(link, groups) for link in node.outputs["Alpha"].links]
     while todo:
@@ -368,8 +389,8 @@ def _alpha_reader(picture):
             if to.is_active_output:
                 todo.extend((onward, within[:-1]) for onward in within[-1].outputs[socket.identifier].links)
             continue
-        if (within[0] if within else to) not in shown:
-            continue  # nothing renders what it reads (a group node counts whole)
+        if not all(_reaches_output(chained, reaching) for chained in (*within, to)):
+            continue  # nothing renders what it reads (QA: a shader left out inside a group)
         if socket.name == "Alpha" and any(output.type == "SHADER" for output in to.outputs):
             return ""
         first = to.inputs[1].links if to.type == "MIX_SHADER" and socket == to.inputs[0] else ()
@@ -379,30 +400,50 @@ def _alpha_reader(picture):
     return changed
 
 
-def _feeding_output(tree):
-    """The nodes of material node ``tree`` whose outputs reach its active Material Output's
-    Surface, through links that are not muted (a node group counts whole)."""
-    output = next((n for n in tree.nodes if n.type == "OUTPUT_MATERIAL" and n.is_active_output), None)
-    found, todo = set(), list(output.inputs["Surface"].links) if output is not None else []
-    while todo:
-        link = todo.pop()
-        if not link.is_muted and link.from_node not in found:
-            found.add(link.from_node)
-            todo.extend(upstream for socket in link.from_node.inputs for upstream in socket.links)
-    return found
+def _reaches_output(node, reaching):
+    """Whether ``node``'s outputs reach its tree's output (a material's active Material Output's
+    Surface, a group's active Group Output), through unmuted links; ``reaching`` keeps each
+    tree's answer."""
+    tree = node.id_data
+    if tree not in reaching:
+        output = next((n for n in tree.nodes if n.type in {"OUTPUT_MATERIAL", "GROUP_OUTPUT"} and n.is_active_output),
+                      None)
+        sockets = ([output.inputs["Surface"]] if output.type == "OUTPUT_MATERIAL" else list(output.inputs)) \
+            if output is not None else []
+        found, todo = set(), [link for socket in sockets for link in socket.links]
+        while todo:
+            link = todo.pop()
+            if not link.is_muted and link.from_node not in found:
+                found.add(link.from_node)
+                todo.extend(upstream for socket in link.from_node.inputs for upstream in socket.links)
+        reaching[tree] = found
+    return node in reaching[tree]
 
 
-def _reading_notes(obj, node, changed):
+def _reading_notes(obj, picture, changed, picture_layer):
     """What Bind says when what it cuts out may differ from what renders: a node ``changed``
-    (its name) changes the picture's coordinates, or other pictures with alpha are wired in."""
+    (its name) changes the picture's coordinates, other pictures with alpha are read, or the
+    same picture is read through another UV map than ``picture_layer`` or changed coordinates."""
     notes = [f"'{changed}' changes the coordinates its picture is read through: what is cut out may not be "
              "what renders"] if changed else []
-    # Another node showing the same picture (Blender 5's importer adds one to a material it
-    # reuses) is cut out alike.
-    others = list(dict.fromkeys(other.image.name for other, _ in _pictures(obj)[1:]
-                                if other.outputs["Alpha"].is_linked and other.image != node.image))
+    image = picture.node.image
+    others, elsewhere = [], []
+    for other in _pictures(obj):
+        if other == picture or _alpha_reader(other) is None:
+            continue
+        if other.node.image != image:
+            others.append(other.node.image.name)
+            continue
+        # The same picture again (Blender 5's importer adds a node to a material it reuses) is
+        # cut out alike where it is read alike (QA: a copy through another UV map was lost).
+        layer, other_changed = _picture_uv_layer(obj.data, other)
+        if layer != picture_layer or other_changed:
+            elsewhere.append(other.node.name)
     if others:
-        notes.append(f"only the picture '{node.image.name}' is cut out, not " + ", ".join(map(repr, others)))
+        notes.append(f"only the picture '{image.name}' is cut out, not " + ", ".join(map(repr, dict.fromkeys(others))))
+    if elsewhere:
+        notes.append(f"its picture is also read through other coordinates by {', '.join(map(repr, elsewhere))}: "
+                     f"only what '{picture.node.name}' shows through UV map '{picture_layer.name}' is cut out")
     return notes
 
 

@@ -741,7 +741,9 @@ def test_bind_says_when_the_picture_is_read_through_changed_coordinates_or_is_on
     second = tree.nodes.new("ShaderNodeTexImage")
     second.image = image.image.copy()
     second.image.name = "Line Art"
-    tree.links.new(second.outputs["Alpha"], tree.nodes.new("ShaderNodeMath").inputs[0])
+    math = tree.nodes.new("ShaderNodeMath")
+    tree.links.new(second.outputs["Alpha"], math.inputs[0])
+    tree.links.new(math.outputs[0], next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED").inputs["Roughness"])
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     said = capsys.readouterr().out
     assert f"'{mapping.name}' changes the coordinates its picture is read through" in said
@@ -1022,3 +1024,151 @@ def test_a_picture_read_inside_a_node_group_is_cut_out(addon, tmp_path, capsys, 
     two_pixels = 2.0 / np.array([W, H])
     assert np.all(np.abs(picture.min(axis=0) - [xx.min() / W, yy.min() / H]) < two_pixels)
     assert np.all(np.abs(picture.max(axis=0) - [(xx.max() + 1) / W, (yy.max() + 1) / H]) < two_pixels)
+
+
+def sprite_group(image, inputs=("Vector",), outputs=("Color", "Alpha"), dead_shader=False):
+    """A node group holding an Image Texture of ``image``: its Vector from the group's input,
+    its Color and Alpha out (or its Alpha into a Principled BSDF wired to nothing)."""
+    group = bpy.data.node_groups.new("Sprite", "ShaderNodeTree")
+    for name in inputs:
+        group.interface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector")
+    for name in outputs:
+        group.interface.new_socket(name, in_out="OUTPUT", socket_type="NodeSocketColor" if name == "Color"
+                                   else "NodeSocketFloat")
+    given, out, texture = (group.nodes.new(kind) for kind in ("NodeGroupInput", "NodeGroupOutput", "ShaderNodeTexImage"))
+    texture.image = image
+    if inputs:
+        group.links.new(given.outputs["Vector"], texture.inputs["Vector"])
+    for name in outputs:
+        group.links.new(texture.outputs[name], out.inputs[name])
+    if dead_shader:
+        group.links.new(texture.outputs["Alpha"], group.nodes.new("ShaderNodeBsdfPrincipled").inputs["Alpha"])
+    return group
+
+
+def picture_in_group(obj, **options):
+    """Replace the plane's Image Texture by a group node of :func:`sprite_group`; (tree, shader, group node)."""
+    tree = obj.active_material.node_tree
+    image = next(n for n in tree.nodes if n.type == "TEX_IMAGE")
+    shader = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    holder = tree.nodes.new("ShaderNodeGroup")
+    holder.node_tree = sprite_group(image.image, **options)
+    tree.nodes.remove(image)
+    return tree, shader, holder
+
+
+def muted_picture(obj):
+    next(n for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE").mute = True
+
+
+def muted_group(obj):
+    tree, shader, holder = picture_in_group(obj)
+    tree.links.new(holder.outputs["Color"], shader.inputs["Base Color"])
+    tree.links.new(holder.outputs["Alpha"], shader.inputs["Alpha"])
+    holder.mute = True
+
+
+def dead_shader_in_group(obj):
+    tree, shader, holder = picture_in_group(obj, outputs=("Color",), dead_shader=True)
+    tree.links.new(holder.outputs["Color"], shader.inputs["Base Color"])
+
+
+def sphere_projection(obj):
+    next(n for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE").projection = "SPHERE"
+
+
+def unlinked_group_vector(obj):
+    tree, shader, holder = picture_in_group(obj)
+    tree.links.new(holder.outputs["Color"], shader.inputs["Base Color"])
+    tree.links.new(holder.outputs["Alpha"], shader.inputs["Alpha"])
+
+
+def group_used_twice(obj):
+    tree, shader, first = picture_in_group(obj)
+    second = tree.nodes.new("ShaderNodeGroup")
+    second.node_tree = first.node_tree
+    uv_map = tree.nodes.new("ShaderNodeUVMap")
+    for holder in (first, second):
+        tree.links.new(uv_map.outputs["UV"], holder.inputs["Vector"])
+    tree.links.new(first.outputs["Color"], shader.inputs["Base Color"])
+    tree.links.new(second.outputs["Alpha"], shader.inputs["Alpha"])
+
+
+def read_again_through_another_map(obj):
+    quad = obj.data
+    uv = np.empty(2 * len(quad.loops), np.float32)
+    quad.uv_layers[0].data.foreach_get("uv", uv)
+    quad.uv_layers.new(name="Shifted").data.foreach_set("uv", (uv.reshape(-1, 2) + [0.4, 0.0]).ravel())
+    tree = obj.active_material.node_tree
+    first = next(n for n in tree.nodes if n.type == "TEX_IMAGE")
+    second = tree.nodes.new("ShaderNodeTexImage")
+    second.image = first.image
+    uv_map = tree.nodes.new("ShaderNodeUVMap")
+    uv_map.uv_map = "Shifted"
+    tree.links.new(uv_map.outputs["UV"], second.inputs["Vector"])
+    shader = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    tree.links.new(second.outputs["Alpha"], shader.inputs["Alpha"])
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    output = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
+    tree.links.new(output.inputs["Surface"].links[0].from_socket, mix.inputs[1])
+    tree.links.new(shader.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], output.inputs["Surface"])
+
+
+def on_a_second_tile(obj):
+    image = next(n for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE").image
+    image.source = "TILED"
+    quad = obj.data
+    uv = np.empty(2 * len(quad.loops), np.float32)
+    quad.uv_layers[0].data.foreach_get("uv", uv)
+    quad.uv_layers[0].data.foreach_set("uv", (uv.reshape(-1, 2) + [1.0, 0.0]).ravel())
+
+
+# How the material reads the picture, whether the plane renders whole (then it is rigged
+# whole), and what Bind says. From a QA round: each of these was cut to the picture, silently,
+# where it renders otherwise (up to 72% of the visible pixels lost), or the reverse.
+READINGS = {
+    "picture muted": (muted_picture, True, "nothing reads the alpha"),
+    "group muted": (muted_group, True, "nothing reads the alpha"),
+    "a shader left out in the group reads it": (dead_shader_in_group, True, "nothing reads the alpha"),
+    "sphere projection": (sphere_projection, False, "changes the coordinates its picture is read through"),
+    "group's Vector unlinked": (unlinked_group_vector, False, "changes the coordinates its picture is read through"),
+    "group used twice, colour and alpha": (group_used_twice, False, ""),
+    "read again through another UV map": (read_again_through_another_map, False,
+                                          "its picture is also read through other coordinates"),
+    "UDIM tile 1002": (on_a_second_tile, True, "tiled (UDIM) picture shown on a tile other than 1001"),
+}
+
+
+@pytest.mark.parametrize("reading", READINGS)
+def test_bind_cuts_out_the_picture_as_the_material_reads_it_or_says_why_not(addon, tmp_path, capsys, reading):
+    obj, _ = import_picture(tmp_path)
+    setup, whole, said = READINGS[reading]
+    setup(obj)
+    capsys.readouterr()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    out = capsys.readouterr().out
+    points = checks.mesh_points(obj)
+    box = np.prod((points.max(axis=0) - points.min(axis=0))[:2])
+    if whole:
+        assert checks.area(obj, points) == pytest.approx(box, rel=1e-6)
+    else:
+        assert checks.area(obj, points) < 0.8 * box  # cut out
+    if said:
+        assert said in out, out
+    else:
+        assert "nothing reads" not in out and "changes" not in out, out
+
+
+def test_a_float_picture_with_nan_in_its_alpha_binds(addon, tmp_path):
+    """One NaN in an EXR's alpha (a render's firefly) stopped Bind with a Python traceback (QA)."""
+    obj, pixels = import_picture(tmp_path)
+    image = next(n for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE").image
+    flat = np.array(pixels, np.float32)
+    flat[5, 5, 3] = np.nan
+    floating = bpy.data.images.new("floating", W, H, alpha=True, float_buffer=True)
+    floating.pixels.foreach_set(flat.ravel())
+    next(n for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE").image = floating
+    assert image != floating
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    assert np.all(np.isfinite(checks.mesh_points(obj))) and len(obj.data.vertices) > 4
