@@ -141,7 +141,8 @@ def conforming_triangulation(loops, interior, geometry, max_rounds=20):
         edge_keys = np.unique(_segment_keys(
             np.concatenate([triangles[:, 0], triangles[:, 1], triangles[:, 2]]),
             np.concatenate([triangles[:, 1], triangles[:, 2], triangles[:, 0]]), n))
-        # Each loop's segments at once: a segment's end is the next point, the loop's first after its last.
+        # Each loop's segments at once: a segment ends at the next point, the loop's first after
+        # its last.
         following_index = np.arange(1, n + 1 - len(interior))
         following_index[starts[1:] - 1] = starts[:-1]
         boundary = points[:len(following_index)]

@@ -3,9 +3,10 @@
 Handles are hard constraints, a connected part of the graph with no handle stays at rest, and
 one held by a single handle point is carried with it, unturned (it could turn about the point at
 no cost, so no solve would settle it); all these are *fixed*, the rest are *free*. A solve
-iterates on the free points' coordinates stacked ``v = [x; y]`` (length ``2 f``). Every term that is linear in the positions (the paper's rows
-``A``, the fold penalty's triangle edges) splits the same way: ``M V = M_c c + [M_f 0; 0 M_f] v``
-with ``M V`` kept coordinate-major. :meth:`Unknowns.split` makes that split, once for all of them.
+iterates on the free points' coordinates stacked ``v = [x; y]`` (length ``2 f``). Every term
+that is linear in the positions (the paper's rows ``A``, the fold penalty's triangle edges)
+splits the same way: ``M V = M_c c + [M_f 0; 0 M_f] v`` with ``M V`` kept coordinate-major.
+:meth:`Unknowns.split` makes that split, once for all of them.
 """
 
 from __future__ import annotations
