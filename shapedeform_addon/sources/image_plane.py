@@ -319,7 +319,7 @@ def _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triang
     # Only what the plane shows: its UVs may frame part of the picture (a sprite sheet's).
     margin = _FILTER_MARGIN.get(node.interpolation, max(_FILTER_MARGIN.values()))
     try:
-        rings = image_cutout(alpha, margin=margin, window=window)
+        rings = image_cutout(alpha, margin=margin, window=window, wrap=node.extension == "REPEAT")
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     return to_plane(rings), to_plane(shown_frame(width, height, window)), notes

@@ -254,6 +254,35 @@ def test_the_cut_out_covers_what_the_pictures_filter_shows(addon, tmp_path, inte
                                f"{alpha[faint][clipped].max():.4f}")
 
 
+@pytest.mark.parametrize("interpolation", ["Linear", "Cubic"])
+def test_the_cut_out_of_a_repeating_picture_covers_the_far_edges_filtered_in(addon, tmp_path, interpolation):
+    """With Extension Repeat, filtering blends each edge of the picture with the opposite one:
+    pixels touching the right and top edges show faintly along the left and bottom ones, and
+    the cut-out, clipped to the picture, left 50-240 such pixels out (QA)."""
+    yy, xx = np.mgrid[:H, :W]
+    pixels = np.zeros((H, W, 4), np.float32)
+    pixels[..., 3] = ((xx >= W - 6) & (yy > 10) & (yy < 30)) | ((yy >= H - 4) & (xx > 20) & (xx < 40))
+    obj = checks.import_picture(tmp_path, "tiles", pixels)
+    picture_node = next(n for n in obj.active_material.node_tree.nodes if n.type == "TEX_IMAGE")
+    picture_node.interpolation, picture_node.extension = interpolation, "REPEAT"
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    texels = uv_of_points(obj.data) * (W, H)
+    triangles = texels[checks.triangles(obj)]
+    xs, ys = np.arange(0.0, W, 0.125), np.arange(0.0, H, 0.125)
+
+    def wrapped(samples, count):  # offsets from every texel's centre, the nearer way round
+        return (samples[:, None] - (np.arange(count) + 0.5) + 0.5 * count) % count - 0.5 * count
+
+    alpha = filter_weights(interpolation, wrapped(ys, H)) @ pixels[..., 3] @ filter_weights(interpolation,
+                                                                                             wrapped(xs, W)).T
+    faint = (alpha >= 1.0 / 255.0) & (alpha < 0.999)
+    points = np.stack(np.meshgrid(xs, ys), axis=-1)[faint]
+    assert (points[:, 0] < 1.0).any() and (points[:, 1] < 1.0).any()  # the far edges show near the origin
+    clipped = ~inside_triangles(points, triangles)
+    assert not clipped.any(), (f"{clipped.sum()} points of the picture's edge are outside the cut-out, alpha up to "
+                               f"{alpha[faint][clipped].max():.4f}")
+
+
 @pytest.mark.parametrize("extension, moved", [("REPEAT", "a tile over"), ("REPEAT", "mirrored"),
                                                ("REPEAT", "a hair past 0"), ("MIRROR", "a tile over"),
                                                ("MIRROR", "mirrored")])

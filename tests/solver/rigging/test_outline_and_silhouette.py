@@ -128,6 +128,23 @@ def test_image_cutout_covers_every_visible_pixel_and_stays_in_the_picture():
     assert len(centres) > 0
 
 
+def test_a_repeating_pictures_cutout_takes_in_the_opposite_edges_and_is_otherwise_the_same():
+    """A picture that repeats shows, along each edge, the opposite edge filtered in: its cut-out
+    covers pixels there that the far edge's visible pixels reach within the margin, and is the
+    plain cut-out where nothing touches an edge."""
+    image = np.zeros((40, 60), np.float32)
+    image[10:20, 20:30] = 1.0
+    for same, plain in zip(image_cutout(image, wrap=True), image_cutout(image), strict=True):
+        np.testing.assert_array_equal(same, plain)
+    image[25:30, 58:] = image[38:, 5:9] = 1.0  # touching the right and the top edge
+    plain, wrapped = shape_geometry(image_cutout(image)), shape_geometry(image_cutout(image, wrap=True))
+    far = shapely.box(0, 25, 0.5, 30), shapely.box(5, 0, 9, 0.5)  # where Linear filtering reaches
+    assert not any(plain.intersects(box) for box in far)
+    assert all(wrapped.buffer(1e-9).contains(box) for box in far)
+    assert shapely.box(0, 0, 60, 40).buffer(1e-9).contains(wrapped)
+    assert wrapped.contains(plain.buffer(-1e-6))
+
+
 @pytest.mark.parametrize("window", [None, [(0.0, 0.0), (700.0, 0.0), (700.0, 600.0), (0.0, 600.0)]])
 def test_a_pictures_graph_covers_every_visible_pixel_within_what_the_plane_shows(window):
     """A cut-out's graph is the mesh that shows the picture: simplified to a coarse graph's
