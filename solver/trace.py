@@ -11,7 +11,7 @@ import contourpy
 import numpy as np
 import shapely
 
-from .shapes import geometry_rings, shape_geometry
+from .shapes import geometry_rings, polygonal_part, shape_geometry
 
 __all__ = ["trace_silhouette", "coverage"]
 
@@ -102,7 +102,7 @@ def trace_silhouette(image, level=0.5, tolerance=0.5, max_vertices=None, min_are
     if not rings:
         raise ValueError(f"no pixel is as opaque as the level {level:.3g} (is the picture fully transparent?): "
                          "nothing to trace")
-    geometry = shape_geometry(rings)
+    geometry = _within_picture(shape_geometry(rings), values.shape)
     geometry = _drop_specks(geometry, min_area)
     if geometry.is_empty:
         raise ValueError(f"every traced region is smaller than min_area={min_area} pixels")
@@ -120,6 +120,16 @@ def trace_silhouette(image, level=0.5, tolerance=0.5, max_vertices=None, min_are
             else:
                 low = middle
     return [ring for island in geometry_rings(simplified) for ring in island]
+
+
+def _within_picture(geometry, shape):
+    """``geometry`` clipped to the picture of ``shape`` (H, W): at a low level a contour meets the
+    border half a pixel out (QA: up to 0.5 pixel outside the image)."""
+    height, width = shape
+    low_x, low_y, high_x, high_y = geometry.bounds
+    if low_x >= 0.0 and low_y >= 0.0 and high_x <= width and high_y <= height:
+        return geometry  # as traced: a clip would only restart its rings
+    return polygonal_part(shapely.intersection(geometry, shapely.box(0.0, 0.0, width, height)))
 
 
 def _drop_specks(geometry, min_area):

@@ -141,3 +141,18 @@ def test_pixels_at_the_level_are_traced_and_the_images_edge_is_traced_on_it():
         alone = shape_geometry(solver.trace_silhouette(mask, tolerance=0))
         padded = shape_geometry([ring - 1 for ring in solver.trace_silhouette(np.pad(mask, 1), tolerance=0)])
         assert alone.symmetric_difference(padded).area < 1e-9
+
+
+@pytest.mark.parametrize("level", [1.0 / 255.0, 0.1, 0.5, 0.9])
+def test_a_trace_stays_in_the_picture_at_any_level(level):
+    """Between an edge pixel and the border the contour crosses a low level half a pixel out
+    (QA: up to 0.5 pixel outside the image at 1/255)."""
+    import shapely
+
+    from solver.shapes import shape_geometry
+
+    image = np.zeros((20, 30))
+    image[5:15, :10], image[:3, 20:] = 1.0, 0.95
+    traced = shape_geometry(solver.trace_silhouette(image, level=level, tolerance=0))
+    assert shapely.box(0, 0, 30, 20).contains(traced)
+    assert traced.area >= 0.75 * (100 + 30)  # the pixels, less what a high level cuts off their outline
