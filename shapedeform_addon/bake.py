@@ -40,6 +40,7 @@ PREFIX = "sd_bake_"
 MARK = rig_format.BAKE_MARK
 IN_TIME = rig_format.BAKE_IN_TIME
 BAKED = rig_format.BAKED
+FRAMES = rig_format.BAKE_FRAMES
 _LINEAR = 1  # Keyframe.interpolation 'LINEAR' as foreach_set takes it (the enum's value)
 
 
@@ -110,7 +111,7 @@ def _show_live(cage, points):
     cage.data.update()
 
 
-def _write_keys(cage, frames, captured, times):
+def _write_keys(cage, frames, step, captured, times):
     """Keep each captured pose in a shape key, played at the animation time its frame showed
     (``times``, the scene's ``frame_current_final``): playback maps a frame to its time for
     these keys as for the handles', so with Time Stretching a key at the frame itself would be
@@ -120,6 +121,7 @@ def _write_keys(cage, frames, captured, times):
     basis.data.foreach_set("co", rig_format.rest_of(cage).ravel())
     key = cage.data.shape_keys
     key[MARK] = key[IN_TIME] = True
+    key[FRAMES] = [frames[0], frames[-1], step]
     key.use_relative = False
     key_times = rig_format.bake_key_times(len(frames))
     # An absolute Key puts a new key where its time is (Blender divides the time by 100 for the
@@ -134,9 +136,17 @@ def _write_keys(cage, frames, captured, times):
 
 
 def baked_frames(obj):
-    """(first frame, last frame, step) of the bake owner ``obj`` plays, from its mark; None when
-    it has none (not baked, or a library override whose library's rig was not baked)."""
-    mark = obj.shapedeform.get(BAKED)
+    """(first frame, last frame, step) of the bake owner ``obj`` plays; None when it plays none,
+    or one whose frames are not known.
+
+    Read from the bake's Key, which a library override keeps with its local cage: the owner's
+    mark comes back from the library on reopening (QA: Bake Again then baked the library's
+    frames, or the preview range's)."""
+    cage = obj.shapedeform.cage
+    key = cage.data.shape_keys if cage is not None and cage.data is not None else None
+    mark = key.get(FRAMES) if key is not None else None
+    if mark is None:  # a bake from before the Key held them
+        mark = obj.shapedeform.get(BAKED)
     return tuple(int(value) for value in mark) if mark is not None and len(mark) == 3 else None
 
 
@@ -386,7 +396,7 @@ class Bake:
         for obj in self.objects:
             clear(obj)
             frames, step = self.frames_of[obj.name]
-            _write_keys(obj.shapedeform.cage, frames, self.captured[obj.name], self.times[obj.name])
+            _write_keys(obj.shapedeform.cage, frames, step, self.captured[obj.name], self.times[obj.name])
             obj.shapedeform[BAKED] = [frames[0], frames[-1], step]
             rig_format.store_bake_source(obj.shapedeform.cage, *bake_source.fingerprint(obj))
             bake_source.forget(obj)

@@ -123,7 +123,8 @@ def _bake(args):
     objects = _rigs_to_bake(args.objects, scene, depsgraph)
     start, end = args.frames or (scene.frame_start, scene.frame_end)
     names = ", ".join(o.name for o in objects)
-    print(f"{COMMAND}: baking frames {start}-{end} (step {args.step}) of {names}", flush=True)
+    # "to", not a dash: frames may be negative (QA: "baking frames -5--5").
+    print(f"{COMMAND}: baking frames {start} to {end} (step {args.step}) of {names}", flush=True)
 
     def progress(done, total):
         print(f"{COMMAND}: frame {done}/{total}", flush=True)

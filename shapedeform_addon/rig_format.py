@@ -69,7 +69,8 @@ from .errors import RigError
 GRAPH_KEYS = ("plane", "graph_points", "graph_edges", "graph_loops", "graph_loop_sizes", "graph_triangles",
               "graph_spacing")
 MODIFIER_NAME = "Shape Deform"
-BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that plays
+BAKED = "baked"  # on the owner's settings: [start, end, step] of the bake that plays (as BAKE_FRAMES)
+BAKE_FRAMES = "shapedeform_baked_frames"  # on a bake's Key: [start, end, step] of the frames it holds
 BAKE_MARK = "shapedeform_bake"  # ID property on the data-blocks a bake created
 BAKE_IN_TIME = "shapedeform_bake_in_time"  # on a bake's Key: absolute keys, played by its Evaluation Time
 BAKE_SOURCE = "shapedeform_baked_from"  # on a bake's Key: a digest of what it was made from (.bake_source.fingerprint)

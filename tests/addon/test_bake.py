@@ -790,7 +790,7 @@ def test_every_frame_of_a_long_bake_plays_its_own_pose_alone(addon):
     rest = shapedeform.rig_format.rest_of(cage)
     frames = list(range(1, 3001))
     poses = rest[None] + np.random.default_rng(7).normal(size=(len(frames), *rest.shape)).astype(np.float32)
-    shapedeform.bake._write_keys(cage, frames, list(poses), frames)
+    shapedeform.bake._write_keys(cage, frames, 1, list(poses), frames)
     scene = bpy.context.scene
     for frame in (1, 2, 1499, 2048, 2999, 3000):
         scene.frame_set(frame)

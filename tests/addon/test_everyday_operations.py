@@ -1396,6 +1396,43 @@ def test_baking_an_override_of_a_baked_character_is_the_shots_own(addon, tmp_pat
     np.testing.assert_allclose(evaluated(obj), baked, atol=1e-6)
 
 
+@pytest.mark.parametrize("library_baked", [True, False])
+def test_an_overrides_bake_keeps_its_frames_on_reopening(addon, tmp_path, quiet, library_baked):
+    """A shot bakes an override of a character over frames 1-10, step 2, and is reopened: the
+    owner's ID properties come back from the library, and with them its bake's frames (1-6, or
+    none), so the sidebar named the library's frames and Bake Again baked those (11-20 then
+    held frame 10's pose, 0.65 off), or the preview range's (QA). The frames go with the bake,
+    on the override's own Key."""
+    _, obj = character_collection(tmp_path)
+    Rigged(obj)
+    bpy.context.view_layer.objects.active = obj
+    if library_baked:
+        assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=6) == {"FINISHED"}
+    library = str(tmp_path / "character.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=library)
+
+    obj = override_in_a_new_shot(library)
+    handle = obj.shapedeform.handles[1].object
+    handle.keyframe_insert("location", frame=1)
+    handle.location.y += 0.5
+    handle.keyframe_insert("location", frame=10)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=10, step=2) == {"FINISHED"}
+    shot = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    scene = bpy.context.scene
+    obj = scene.objects["Grid"]
+    assert addon.shapedeform_addon.bake.baked_frames(obj) == (1, 10, 2)
+    scene.frame_start, scene.frame_end = 1, 10
+    scene.use_preview_range, scene.frame_preview_start, scene.frame_preview_end = True, 3, 5
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.shapedeform.bake(again=True) == {"FINISHED"}
+    assert addon.shapedeform_addon.bake.baked_frames(obj) == (1, 10, 2)
+    keys = [block.name for block in obj.shapedeform.cage.data.shape_keys.key_blocks[1:]]
+    assert keys == [addon.shapedeform_addon.bake.key_name(frame) for frame in (1, 3, 5, 7, 9, 10)]
+
+
 def test_an_override_saved_without_the_extension_keeps_its_rig(addon, tmp_path, quiet):
     """A shot whose override was baked, opened and saved by someone without the extension:
     Blender saves the override's rig references only while the extension is enabled, so they
@@ -1633,7 +1670,7 @@ def test_the_command_line_bakes_an_instanced_rig_named_by_its_handle(addon, tmp_
     main = addon.shapedeform_addon.cli.main
     name = obj.name
     assert main(["bake", "--frames", "1-3", "--objects", rig.second.name]) == 0
-    assert f"baking frames 1-3 (step 1) of {name}" in capsys.readouterr().out
+    assert f"baking frames 1 to 3 (step 1) of {name}" in capsys.readouterr().out
     bpy.ops.wm.open_mainfile(filepath=path)
     assert addon.shapedeform_addon.rig_format.is_baked(bpy.data.objects[name])
 
