@@ -54,7 +54,8 @@ class DragState:
         ``handle`` is a pin made for this drag (removed on cancel).
     active_handle : int
         The handle list's active item before the grab (a pin made for it becomes the active
-        one; cancelling gives the list back as it was).
+        one, and the active object in place of a handle of the rig; cancelling gives both
+        back as they were).
     """
 
     def __init__(self, obj, handle, pinned, plane, hit, collection_was_missing, active_handle):
@@ -67,6 +68,7 @@ class DragState:
         self.start_location = tuple(handle.location)  # floats read from float32: restored bit for bit
         self.collection_was_missing = collection_was_missing
         self.moved = False
+        self.replaced_active = None  # (object, was selected): the active handle a pin took over from
 
 
 def _plane(obj):
@@ -118,8 +120,10 @@ def begin(context, obj, ray, pin=False):
         # see): the hit lies on the plane, as near a part left there, under the others, as to
         # the one in front.
         handle = handles.add(obj, tuple(above_every_layer(hit, shape, plane[1])), snap=True)
+        state = DragState(obj, handle, True, plane, hit, missing, active)
+        _take_over_active_handle(context.view_layer, state)
         context.view_layer.update()
-        return DragState(obj, handle, True, plane, hit, missing, active)
+        return state
     # A handle deleted in the viewport lingers as an orphan (in no scene): never grab it. Pins
     # pull nothing and ride on the cage: dragging one would only pull it off the shape.
     candidates = [item.object for item in rig_format.present_items(obj)
@@ -133,6 +137,19 @@ def begin(context, obj, ray, pin=False):
                        "Ctrl+click to pin the shape")
     centres = np.array([_matrix(h.matrix_world)[:3, 3] for h in candidates]).reshape(-1, 3)
     return DragState(obj, candidates[nearest(centres, hit)], False, plane, hit, False, settings.active_handle)
+
+
+def _take_over_active_handle(view_layer, state):
+    """Where the active object is a handle of the rig, make the new pin the active object in
+    its place, as "+" makes a handle: the handle list follows the active object (QA: it went
+    back to the old handle, and "-" removed that one instead of the pin)."""
+    active = view_layer.objects.active
+    if active is None or active.type != "EMPTY" or handles.rig_of(active) != state.obj:
+        return
+    state.replaced_active = (active, active.select_get(view_layer=view_layer))
+    active.select_set(False, view_layer=view_layer)
+    state.handle.select_set(True, view_layer=view_layer)
+    view_layer.objects.active = state.handle
 
 
 def move(context, state, ray):
@@ -177,6 +194,10 @@ def cancel(context, state):
     item, and the shape's points."""
     obj = state.obj
     if state.pinned:
+        if state.replaced_active is not None:
+            active, selected = state.replaced_active
+            context.view_layer.objects.active = active
+            active.select_set(selected, view_layer=context.view_layer)
         handles.remove(obj, {state.handle})
         handles.set_active(obj.shapedeform, state.active_handle)
         collection = obj.shapedeform.handle_collection

@@ -140,6 +140,34 @@ def test_ctrl_click_pins_the_shape_and_cancel_removes_the_pin(addon):
     assert len(obj.shapedeform.handles) == 3
 
 
+@pytest.mark.parametrize("ending", ["RET", "ESC"])
+def test_a_pin_made_while_a_handle_is_active_takes_its_place_as_the_active_one(addon, ending):
+    """With a handle the active object (as "+" leaves it), a Ctrl+click pin became the list's
+    active item only until the view layer updated: the list follows the active object, so it
+    went back to the handle, and "-" removed the handle instead of the pin (QA). The pin takes
+    the handle's place as the active object; cancelling gives the handle back."""
+    obj, left, right = rig_with_two_handles()
+    view_layer = bpy.context.view_layer
+    checks.select_only(right)
+    modal, op, _ = operator_stand_in(addon, obj)
+    middle = np.array(checks.world(obj, [0.0, 0.5, 0.0]))
+    modal(op, bpy.context, event("LEFTMOUSE", "PRESS", middle, ctrl=True))
+    pin = op.session.state.handle
+    modal(op, bpy.context, event("MOUSEMOVE", "NOTHING", middle + np.array([0.0, 0.3, 0.0])))
+    modal(op, bpy.context, event(ending, "PRESS"))
+    view_layer.update()
+    settings = obj.shapedeform
+    if ending == "RET":
+        assert view_layer.objects.active == pin and pin.select_get() and not right.select_get()
+        assert settings.handles[settings.active_handle].object == pin
+        assert bpy.ops.shapedeform.remove_handle(handle=pin.name) == {"FINISHED"}
+        assert [item.object for item in settings.handles] == [left, right]
+    else:
+        assert view_layer.objects.active == right and right.select_get()
+        assert settings.handles[settings.active_handle].object == right
+        assert [item.object for item in settings.handles] == [left, right]
+
+
 def test_cancelling_a_ctrl_click_gives_the_handle_list_back(addon):
     """A handle deleted for good stays listed (as deleted) until the user removes it, and the
     list's active item stays: cancelling a Ctrl+click dropped the deleted entry with its pin and
