@@ -277,8 +277,7 @@ class Bake:
             rig_format.require_posable(obj, "bake it")
             settings = obj.shapedeform
             if settings.cage is None:
-                raise RigError(f"'{obj.name}' has no cage (its rig was removed, or an older version bound it): "
-                               "unbind it and bind it again")
+                raise RigError(rig.lost_cage(obj))
             if not rig_format.present_items(obj):
                 raise RigError(f"'{obj.name}' has no handles: nothing moves, nothing to bake")
             if not rig_format.modifiers_of(obj):

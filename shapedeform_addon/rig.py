@@ -178,8 +178,10 @@ def signature(obj, depsgraph=None):
 
 
 def lost_cage(obj):
-    """What to say of a bound ``obj`` whose cage is gone."""
-    return f"'{obj.name}' is bound but lost its cage (deleted by hand): unbind it and bind it again"
+    """What to say of a bound ``obj`` whose cage is gone, wherever it is found (QA: Bake and the
+    status told it two ways)."""
+    return (f"'{obj.name}' is bound but lost its cage (deleted by hand, its rig unbound, or bound by an older "
+            "version): unbind it and bind it again")
 
 
 def _path_carries_handles(obj):

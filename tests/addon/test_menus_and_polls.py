@@ -306,5 +306,5 @@ def test_a_rig_whose_cage_was_deleted_says_so_the_same_way(addon):
     bpy.data.objects.remove(obj.shapedeform.cage)
     bpy.context.view_layer.objects.active = obj
     for operator in (bpy.ops.shapedeform.bind, bpy.ops.shapedeform.add_handle):
-        with pytest.raises(RuntimeError, match="lost its cage \\(deleted by hand\\): unbind it and bind it again"):
+        with pytest.raises(RuntimeError, match="lost its cage \\(deleted by hand.*\\): unbind it and bind it again"):
             operator()
