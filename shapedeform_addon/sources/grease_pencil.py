@@ -155,11 +155,11 @@ def prepare(obj, settings):
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     # Each layer's island, from 1 (0: a layer not rigged, or with nothing drawn on this frame).
-    # Numbers of the rig's own, not the file's (as a mesh's): the layers keep them in a byte
+    # Numbers of the drawing's, not the file's (as a mesh's): the layers keep them in a byte
     # (Blender 5.0-5.2 crash when a grease pencil whose layers have a wider attribute is joined
     # into another, at the next file load), and a join gets them back by name (keep_marks).
-    islands = (part + 1).astype(np.int32) if apart else None
-    layer_islands = {layer.name: k + 1 for k, (layer, _) in enumerate(frames)} if apart else {}
+    layer_islands, own = _layer_islands(obj, [layer for layer, _ in frames], settings) if apart else (None, None)
+    islands = own[part] if apart else None
 
     # Every layer named, also one with nothing drawn yet on this frame.
     chosen = {layer.name for layer in _chosen_layers(obj, settings)} if settings.layers.strip() else None
@@ -175,10 +175,12 @@ def prepare(obj, settings):
             o.data.attributes.new(name, "BOOLEAN", "LAYER").data.foreach_set("value", marks)
             _remember_layers(o, [layer.name for layer in o.data.layers], marks)
         o.shapedeform[RIGGED_KEY] = name
-        if layer_islands:
-            islands = np.array([layer_islands.get(layer.name, 0) for layer in o.data.layers], np.int32)
-            mark_islands(o, islands, "LAYER", "INT8")
-            _remember_layers(o, [layer.name for layer in o.data.layers], islands=islands)
+        if layer_islands is not None:
+            mark_islands(o, layer_islands, "LAYER", "INT8")
+            layers = [layer.name for layer in o.data.layers]
+            sharing = [other for other in rig_format.other_rigged_users(o) if LAYER_ISLANDS in other.shapedeform]
+            for user in [o, *sharing]:  # what each puts back by name when layers come or go
+                _remember_layers(user, layers, islands=layer_islands)
 
     # Stroke Order is on wherever it costs the drawing nothing.
     rigged = [layer for layer, _ in frames]
@@ -186,6 +188,43 @@ def prepare(obj, settings):
                                        _hidden_layers_advice(rigged, settings))))
     return Prepared(plane, graph, commit, advice=advice, modifier_inputs={ORDER_INPUT: not stroke_order_losses(obj)},
                     islands=islands)
+
+
+def _layer_islands(obj, rigged, settings):
+    """The island numbers (l,) int32 of all of ``obj``'s layers for a rig whose parts are the
+    ``rigged`` layers, in order, and those of its parts (k,) int32.
+
+    Numbers that other rigs of the drawing's data gave its layers are kept, so that those rigs
+    still read theirs (QA: a copy bound with other layers apart renumbered them, and moved the
+    first rig's arm 0.24 with no word); a rigged layer without one gets the next free number.
+
+    Raises
+    ------
+    RigError
+        More numbers than a layer keeps, or a chosen layer with nothing drawn on this frame
+        that another rig numbered among this one's.
+    """
+    data = obj.data
+    names = [layer.name for layer in data.layers]
+    others = rig_format.other_rigged_users(obj)
+    attribute = _layer_attribute(data, ISLAND, "INT8") if others else None
+    numbers = _layer_values(attribute, len(names)) if attribute is not None else np.zeros(len(names), np.int32)
+    place = {name: i for i, name in enumerate(names)}
+    rigged = np.array([place[layer.name] for layer in rigged])
+    fresh = rigged[numbers[rigged] == 0]
+    numbers[fresh] = numbers.max(initial=0) + 1 + np.arange(len(fresh), dtype=np.int32)
+    if numbers.max() > MAX_PARTS:
+        raise RigError(f"'{obj.name}': with the rigs of '{others[0].name}', which shares its drawing, Layers Apart "
+                       f"would number more than {MAX_PARTS} layers: choose fewer in Layers, or give it a drawing of "
+                       "its own (Object > Relations > Make Single User)")
+    own = numbers[rigged]
+    empty = [layer.name for layer in _chosen_layers(obj, settings)
+             if place[layer.name] not in rigged and own.min() <= numbers[place[layer.name]] <= own.max()]
+    if empty:
+        raise RigError(f"'{obj.name}': its layer '{empty[0]}', kept apart by the rig of '{others[0].name}' "
+                       "(which shares its drawing), has nothing drawn on this frame: bind on a frame where it has "
+                       "strokes, leave it out of Layers, or give it a drawing of its own (Make Single User)")
+    return numbers, own
 
 
 def _strokes(drawing, fills):

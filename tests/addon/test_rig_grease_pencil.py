@@ -428,6 +428,60 @@ def test_a_copy_with_its_handles_keeps_its_layers_apart(addon, quiet):
         np.testing.assert_allclose(layer_points(obj, name), points, atol=1e-6)
 
 
+def test_a_second_rig_of_the_drawing_keeps_the_first_rigs_layers_apart(addon, quiet):
+    """An Alt+D copy of a figure rigged with Body and Arm apart, released and bound with Leg
+    and Body apart: both rigs read one attribute of the layers' islands, which the copy's Bind
+    made anew with its own numbers, so the first rig's arm lost its island and moved 0.24 with
+    no word (QA). The layers keep the numbers they have; a layer new to layers apart gets the
+    next. Unbinding the copy leaves the first rig's pose as it was."""
+    obj = body_and_arm()
+    data = obj.data
+    drawing = data.layers.new("Leg").frames.new(bpy.context.scene.frame_current).drawing
+    leg = np.array([(-0.6, 0.0, -0.8), (-0.6, 0.0, -2.5), (-0.3, 0.0, -2.5), (-0.3, 0.0, -0.8)], np.float32)
+    drawing.add_strokes([4])
+    drawing.attributes["position"].data.foreach_set("vector", leg.ravel())
+    for attribute, kind, value in (("cyclic", "BOOLEAN", True), ("fill_id", "INT", 1)):
+        (drawing.attributes.get(attribute) or drawing.attributes.new(attribute, kind, "CURVE")).data[0].value = value
+    obj.shapedeform.layers_apart, obj.shapedeform.layers = True, "Body, Arm"
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(obj, checks.world(obj, (-1.15, 0.0, -0.95)))
+    checks.add_handle(obj, checks.world(obj, (0.6, 0.0, 0.7)))
+    checks.add_handle(obj, checks.world(obj, (1.55, 0.0, 0.7))).location.z += 0.5
+    bpy.context.view_layer.update()
+    posed = {name: layer_points(obj, name) for name in ("Body", "Arm")}
+    assert np.abs(posed["Arm"] - layer_points(obj, "Arm", False)).max() > 0.3
+
+    checks.select_only(obj)
+    assert bpy.ops.object.duplicate(linked=True) == {"FINISHED"}
+    copy = bpy.context.active_object
+    assert copy.data == data
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}  # Stop Following
+    copy.shapedeform.layers_apart, copy.shapedeform.layers = True, "Leg, Body"
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    checks.add_handle(copy, checks.world(copy, (-0.45, 0.0, -2.4))).location.x += 0.5
+    checks.add_handle(copy, checks.world(copy, (-1.15, 0.0, 0.95)))
+    bpy.context.view_layer.update()
+    assert copy.shapedeform.status == "" and obj.shapedeform.status == ""
+    for name, points in posed.items():
+        np.testing.assert_allclose(layer_points(obj, name), points, atol=1e-5)
+    assert np.abs(layer_points(copy, "Leg") - leg).max() > 0.3
+
+    checks.select_only(copy)
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    bpy.context.view_layer.update()
+    for name, points in posed.items():
+        np.testing.assert_allclose(layer_points(obj, name), points, atol=1e-5)
+
+    # Where the body (numbered between the arm and the leg) has nothing drawn, the copy's rig
+    # would number its parts about the body's.
+    data.layers["Body"].frames.new(bpy.context.scene.frame_current + 4)
+    bpy.context.scene.frame_set(bpy.context.scene.frame_current + 4)
+    copy.shapedeform.layers = "Arm, Body, Leg"
+    with pytest.raises(RuntimeError, match="its layer 'Body', kept apart by the rig of 'Figure'"):
+        bpy.ops.shapedeform.bind()
+    assert not copy.shapedeform.is_bound
+
+
 @pytest.mark.parametrize("joined", ["a stroke", "a figure with layers apart"])
 def test_a_drawing_joined_into_a_figure_with_layers_apart_keeps_its_parts(addon, quiet, joined):
     """Ctrl+J of another grease pencil into a figure rigged with Layers Apart: Join merges the
