@@ -30,7 +30,8 @@ def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, toler
     radii : (p,) array_like
         Pen radius at each point; a stroke is swept by the mean radius of its points.
     cyclic : (s,) array_like of bool, optional
-        Closed strokes: the area they enclose is covered too (a fill).
+        Closed strokes: the area they enclose is covered too (a fill). So is what an open
+        stroke encloses by itself (its ends drawn over each other, or a loop).
     min_radius : float
         Radius used where a stroke's radius is smaller, so hairlines still make an area.
     tolerance : float, optional
@@ -81,7 +82,13 @@ def stroke_silhouette(points, offsets, radii, cyclic=None, min_radius=0.0, toler
         filled = shape_geometry(areas)
         lines = shapely.difference(lines, filled)
         parts.append(filled)
-    parts.extend(shapely.buffer(lines, radius, quad_segs=4))
+    sweeps = shapely.buffer(lines, radius, quad_segs=4)
+    # A stroke drawn round to where it began covers what it goes round, as a closed one does
+    # (QA: the draw tool leaves an outline closed by hand open, and the eyes drawn in it stayed
+    # at rest). Holes between strokes stay: an arm drawn against the body leaves a gap there.
+    enclosing = np.flatnonzero(shapely.get_num_interior_rings(sweeps) > 0)
+    sweeps[enclosing] = shapely.polygons(shapely.get_exterior_ring(sweeps[enclosing]))
+    parts.extend(sweeps)
     closed = strokes[cyclic[strokes] & (counts[strokes] >= 3)]
     if len(closed):
         outlines = shapely.linearrings(np.concatenate([points[offsets[i]:offsets[i + 1]] for i in closed]),

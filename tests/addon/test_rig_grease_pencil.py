@@ -129,6 +129,36 @@ def test_strokes_inside_a_fill_move_with_it(addon):
     assert still == []
 
 
+def test_eyes_drawn_in_a_head_outlined_by_hand_follow_the_head(addon):
+    """Line art (a stroke material, no fill): a head drawn as one stroke round to where it
+    began, which the draw tool leaves open, and eyes inside. The rig was a thin ring of the
+    outline, and the eyes stayed at rest while the head swung 0.6 (QA). What one stroke goes
+    round is the shape's, as a closed stroke's is."""
+    data = getattr(bpy.data, "grease_pencils_v3", bpy.data.grease_pencils).new("Face")
+    obj = bpy.data.objects.new("Face", data)
+    bpy.context.scene.collection.objects.link(obj)
+    material = bpy.data.materials.new("Line")
+    bpy.data.materials.create_gpencil_data(material)
+    data.materials.append(material)
+    t = np.linspace(0.0, 2 * np.pi + 0.1, 64)
+    strokes = [np.column_stack([np.cos(t), 0 * t, np.sin(t)]),
+               np.array([(-0.35, 0.0, 0.3), (-0.3, 0.0, 0.35), (-0.25, 0.0, 0.3)]),
+               np.array([(0.25, 0.0, 0.3), (0.3, 0.0, 0.35), (0.35, 0.0, 0.3)])]
+    drawing = data.layers.new("Lines").frames.new(bpy.context.scene.frame_current).drawing
+    drawing.add_strokes([len(points) for points in strokes])
+    drawing.attributes["position"].data.foreach_set("vector", np.concatenate(strokes).astype(np.float32).ravel())
+    radius = drawing.attributes.get("radius") or drawing.attributes.new("radius", "FLOAT", "POINT")
+    radius.data.foreach_set("value", np.full(70, 0.01, np.float32))
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    rest = drawing_points(obj, evaluated=False).copy()
+    checks.add_handle(obj, checks.world(obj, (0.0, 0.0, -1.0)))
+    checks.add_handle(obj, checks.world(obj, (0.0, 0.0, 1.0))).location.x += 0.6
+    bpy.context.view_layer.update()
+    moved = np.linalg.norm(drawing_points(obj) - rest, axis=1)
+    assert moved[:64].max() > 0.5 and moved[64:].min() > 0.1
+
+
 def test_a_drawing_with_an_empty_layer_binds(addon):
     """Add > Grease Pencil > Stroke keys an empty drawing on its fill layer: Bind rigs the
     strokes there are (it raised numpy's length mismatch from the empty drawing)."""

@@ -107,6 +107,23 @@ def test_stroke_silhouette_sweeps_strokes_only_outside_the_areas():
     assert max(np.linalg.norm(ring, axis=1).max() for ring in rings) == pytest.approx(3.1, abs=1e-6)
 
 
+@pytest.mark.parametrize("ends", ["drawn over each other", "touching", "a gap wider than the line"])
+def test_an_open_stroke_covers_what_it_goes_round_by_itself(ends):
+    """The draw tool leaves an outline closed by hand open: its sweep was a ring, and what was
+    drawn inside it (eyes) no part of the shape (QA). What one stroke encloses by itself is
+    covered, as a closed stroke's fill; a gap between its ends wider than the line is not
+    closed, nor is a hole between strokes."""
+    first, last = {"drawn over each other": (0.0, 2 * np.pi + 0.1), "touching": (0.05, 2 * np.pi),
+                   "a gap wider than the line": (0.3, 2 * np.pi)}[ends]
+    t = np.linspace(first, last, 90)
+    outline = np.column_stack([np.cos(t), np.sin(t)])
+    shape = shape_geometry(stroke_silhouette(outline, [0, 90], np.full(90, 0.03)))
+    assert shape.contains(shapely.Point(0.0, 0.0)) == (ends != "a gap wider than the line")
+    halves = np.concatenate([outline[:45], outline[44:]])  # the same ring, in two strokes
+    apart = shape_geometry(stroke_silhouette(halves, [0, 45, 91], np.full(91, 0.03)))
+    assert not apart.contains(shapely.Point(0.0, 0.0))
+
+
 def test_stroke_silhouette_refuses_nothing():
     with pytest.raises(ValueError, match="zero radius"):
         stroke_silhouette(np.array([[0, 0], [1, 0.0]]), [0, 2], np.zeros(2))
