@@ -55,6 +55,7 @@ class Rig:
             raise RigError(lost_cage(obj))
         self.coarse_copies = _coarse_copies
         self._last_solve = None  # (iterations, targets' bytes, positions, converged)
+        self._last_cage = None  # (positions' and pin amounts' bytes, cage points)
         self.plane, self.graph = rig_format.read_graph(obj)
         if len(settings.cage.data.vertices) != self.graph.n:
             raise RigError(f"'{obj.name}': its cage '{settings.cage.name}' was edited; unbind it and bind it again")
@@ -142,11 +143,18 @@ class Rig:
     def cage_points(self, positions):
         """The cage's points (n, 3) float32 in rig space for graph ``positions`` (n, 2), lifted
         off the plane so that where the pose overlaps itself one layer is in front."""
+        # A rig nobody moves gets the same positions on every frame (QA: the depth took 1.1 ms of
+        # each still rig's frame).
+        key = (positions.tobytes(), self.in_front.tobytes())
+        if self._last_cage is not None and self._last_cage[0] == key:
+            return self._last_cage[1].copy()
         graph = self.graph
         score = depth.moved_score(graph.points, positions, graph.size) * \
             depth.automatic_reach(positions, graph.triangles, self.edge_lengths, graph.size)
         lift = depth.heights(score, graph.size, self.in_front, self.overlap_reach)
-        return self.plane.to_3d(positions, lift).astype(np.float32)
+        points = self.plane.to_3d(positions, lift).astype(np.float32)
+        self._last_cage = (key, points)
+        return points.copy()
 
 
 def _finite(values, pins, label):
