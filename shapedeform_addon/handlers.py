@@ -122,13 +122,16 @@ def on_depsgraph_update(scene, depsgraph):
         return
     handles.follow_active_object(depsgraph.view_layer)
     moved = {}
-    if any(isinstance(update.id, bpy.types.Collection) for update in depsgraph.updates):
+    collections = [update.id for update in depsgraph.updates if isinstance(update.id, bpy.types.Collection)]
+    if collections:
         for obj in rig_format.bound_objects():  # an object moved between collections, perhaps a handle
             if rig_format.is_owner(obj):
                 handles.keep_in_collection(obj)
     # A character linked, overridden, appended or instanced updates a collection; one linked into
-    # a scene (Ctrl+L) the scene alone. A handle's move updates neither.
-    if any(isinstance(update.id, (bpy.types.Collection, bpy.types.Scene)) for update in depsgraph.updates):
+    # a scene (Ctrl+L) the scene alone. A handle's move updates its rig's collection of handles
+    # (QA: the scenes were looked through on every step of a drag), which shows no character.
+    if any(isinstance(update.id, bpy.types.Scene) for update in depsgraph.updates) or \
+            not _only_handle_collections(collections):
         # A collection instance pointed at another collection changes no scene's objects (QA).
         _lock_scenes(force=any(isinstance(update.id, bpy.types.Object) and update.id.instance_type == "COLLECTION"
                                for update in depsgraph.updates))
@@ -164,6 +167,13 @@ def on_depsgraph_update(scene, depsgraph):
         if rig.stale(owner) if is_pin else update.is_updated_transform:
             moved[owner.name] = owner
     _pose(list(moved.values()), depsgraph)
+
+
+def _only_handle_collections(collections):
+    """Whether every one of ``collections`` (updated) holds a rig's handles (its handles and
+    cage): none of them shows a character."""
+    held = {obj.shapedeform.handle_collection for obj in rig_format.bound_objects() if rig_format.is_owner(obj)}
+    return all(collection.original in held for collection in collections)
 
 
 def _pin_moved_by_hand(pin, owner):
