@@ -9,7 +9,6 @@ changing. A frame stepped to is solved with the Render budget at once. Another t
 moved by hand to the points they are left on once the move is over.
 """
 
-import functools
 import traceback
 from contextlib import contextmanager
 
@@ -250,9 +249,8 @@ def on_frame_change(scene, depsgraph):
         _pose(owners, depsgraph, final=True)
         return
     view_layer, seen = bpy.context.view_layer, []
-    instanced = functools.cache(functools.partial(rig_format.instanced_objects, scene))  # rarely needed
     for obj in owners:
-        if _unseen(obj, scene, view_layer, instanced):
+        if _unseen(obj, view_layer):
             rig.defer(obj)
         else:
             seen.append(obj)
@@ -260,18 +258,13 @@ def on_frame_change(scene, depsgraph):
     _refine_later(owners)  # the scene's rigs found once per frame: deferred ones too
 
 
-def _unseen(owner, scene, view_layer, instanced):
+def _unseen(owner, view_layer):
     """Whether the viewport shows nothing of ``owner``'s rig: the owner, in ``view_layer``, is
-    hidden there or has its modifier off in the viewport, or its collection is excluded there
-    and no collection instance shows it (``instanced()``: the session ids of the objects they
-    show), and no duplicate follows the rig (its cage's mesh has no other user). One shown
-    through a collection instance or a Background Set counts as seen, as its visibility there
-    cannot be told cheaply."""
-    if owner.shapedeform.cage.data.users > 1:
+    hidden there or has its modifier off in the viewport, and no duplicate follows the rig
+    (its cage's mesh has no other user). One shown through a collection instance, which cannot
+    be told cheaply, counts as seen."""
+    if owner.shapedeform.cage.data.users > 1 or view_layer.objects.get(owner.name) != owner:
         return False
-    if view_layer.objects.get(owner.name) != owner:
-        # QA: rigs in excluded collections were posed on every frame.
-        return scene.objects.get(owner.name) == owner and owner.session_uid not in instanced()
     return not (owner.visible_get(view_layer=view_layer)
                 and any(m.show_viewport for m in rig_format.modifiers_of(owner)))
 

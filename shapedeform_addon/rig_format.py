@@ -56,7 +56,6 @@ sharing the rig's cage mesh: :func:`.duplicates.follow`) and is never posed on i
 the owner releases it first (:func:`.duplicates.release_followers`).
 """
 
-import itertools
 import random
 
 import bpy
@@ -862,35 +861,18 @@ def owners(scene, depsgraph=None):
 def shown_objects(scene):
     """The objects ``scene`` shows, linked ones too, in scene order: its own, its Background
     Sets', and those of the collections they instance, at any depth (an object may come twice)."""
-    objects = _scene_and_sets_objects(scene)
-    return objects + _instanced_by(objects)
-
-
-def instanced_objects(scene):
-    """The session ids of the objects that collection instances of ``scene`` (its own, its
-    Background Sets', at any depth) show."""
-    return {obj.session_uid for obj in _instanced_by(_scene_and_sets_objects(scene))}
-
-
-def _scene_and_sets_objects(scene):
-    objects, shown = list(scene.objects), {scene.session_uid}
+    objects, shown, seen = list(scene.objects), {scene.session_uid}, set()
     backdrop = scene.background_set
     while backdrop is not None and backdrop.session_uid not in shown:
         shown.add(backdrop.session_uid)
         objects.extend(backdrop.objects)
         backdrop = backdrop.background_set
-    return objects
-
-
-def _instanced_by(objects):
-    """The objects the collection instances among ``objects`` show, at any depth."""
-    instanced, seen = [], set()
-    for obj in itertools.chain(objects, instanced):  # grows with the objects of each instanced collection
+    for obj in objects:  # grows with the objects of each instanced collection
         collection = obj.instance_collection if obj.instance_type == "COLLECTION" else None
         if collection is not None and collection.session_uid not in seen:
             seen.add(collection.session_uid)  # an instance cycle ends here
-            instanced.extend(collection.all_objects)
-    return instanced
+            objects.extend(collection.all_objects)
+    return objects
 
 
 def _evaluated_owners(scene, depsgraph, known):
