@@ -23,10 +23,10 @@ from scipy.spatial import cKDTree
 
 from ... import solver
 from ...solver.outline import outline_graph, parts_graph
-from ...solver.shapes import geometry_rings, shape_geometry
+from ...solver.shapes import geometry_rings
 from ...solver.triangulate import triangle_cross
 from ...solver.wording import by_count
-from ...solver.rigging.outline import boundary_loops, smallest_angles, with_area
+from ...solver.rigging.outline import boundary_loops, smallest_angles, with_area, wound_alike
 from ...solver.rigging.depth import pin_reaches
 from ...solver.rigging.plane import affine_inverse, fit_plane, transform_points
 from .. import compat, nodes, rig_format
@@ -140,8 +140,9 @@ def prepare(obj, settings):
     # Islands that overlap one another (a low-poly puppet's arm quad over its body quad) get an
     # outline graph each, kept apart; where the mesh is its own graph a part had its corners
     # alone, too few points for a second handle.
-    cover = functools.cache(functools.partial(_island_cover, flat, tris, loops))  # asked at most once
-    parts = _overlapping_islands(cover) if pinched is None and mode != "OWN" else None
+    face_islands, point_islands = _mesh_islands(flat, tris)
+    cover = functools.cache(functools.partial(_island_cover, flat, tris, loops, face_islands, point_islands))
+    parts = _overlapping_islands(face_islands, cover) if pinched is None and mode != "OWN" else None
     if mode == "AUTO":
         own = len(flat) <= OWN_GRAPH_LIMIT and on_faces.all() and well_shaped and pinched is None
         if own and 2 * sum(len(loop) for loop in loops) >= len(flat):  # mostly outline
@@ -181,13 +182,13 @@ def prepare(obj, settings):
     return Prepared(plane, graph, lambda o: mark_islands(o, vertex_islands), advice=advice, islands=islands)
 
 
-def _overlapping_islands(cover):
-    """Each triangle's island (t,) where the mesh's islands overlap one another, none
+def _overlapping_islands(parts, cover):
+    """Each triangle's island ``parts`` (t,) where the mesh's islands overlap one another, none
     overlapping itself; else None. ``cover()`` is the mesh's :class:`_Cover`."""
-    cover = cover()
-    if cover.parts.max() == 0 or not cover.overlap or cover.island_overlaps:
+    if parts.max() == 0:
         return None
-    return cover.parts
+    cover = cover()
+    return parts if cover.overlap and not cover.island_overlaps else None
 
 
 def _outline_graph(flat, tris, loops, density):
@@ -248,70 +249,80 @@ def mark_islands(obj, islands, domain="POINT", data_type="INT"):
 
 
 class _Cover(typing.NamedTuple):
-    """How the faces of a mesh lie in its plane: each triangle's island (t,) int64, whether
-    some faces lie on others, and whether some of them are of one island."""
+    """How the faces of a mesh lie in its plane: whether some lie on others, and whether some of
+    those are of one island."""
 
-    parts: np.ndarray
     overlap: bool
     island_overlaps: bool
 
 
-def _island_cover(flat, tris, loops):
-    """The :class:`_Cover` of the triangles (t, 3) over points (n, 2) whose boundary loops are
-    ``loops`` (None where they do not split into simple loops).
-
-    An island whose faces all turn one way covers what its boundary loops bound, once, where
-    those bound as much area as its faces: only the loops need uniting, not every triangle
-    (QA: uniting 100,000 triangles took 3.2 s, so meshes over 2,000 vertices were not asked,
-    and their overlapping islands were joined into one outline)."""
+def _mesh_islands(flat, tris):
+    """Each triangle's island (t,) int64 and each point's (n,) int64 (a point on no face: its
+    own number, past the islands'), for triangles (t, 3) over points (n, 2)."""
     sides = tris[:, [0, 1, 1, 2]].reshape(-1, 2)
     _, labels = connected_components(coo_matrix((np.ones(len(sides)), (sides[:, 0], sides[:, 1])),
                                                 shape=(len(flat), len(flat))), directed=False)
     island_labels, parts = np.unique(labels[tris[:, 0]], return_inverse=True)
-    parts = parts.ravel()
-    vertex_part = np.zeros(labels.max() + 1, dtype=np.int64)
-    vertex_part[island_labels] = np.arange(len(island_labels))
-    vertex_part = vertex_part[labels]
-    cross = triangle_cross(flat, tris)
-    count = len(island_labels)
+    numbers = np.full(labels.max() + 1, len(island_labels), dtype=np.int64)
+    numbers[island_labels] = np.arange(len(island_labels))
+    return parts.ravel(), numbers[labels]
+
+
+def _island_cover(flat, tris, loops, parts, point_parts):
+    """The :class:`_Cover` of the triangles (t, 3) over points (n, 2) in islands ``parts`` (t,)
+    and ``point_parts`` (n,) (:func:`_mesh_islands`), whose boundary loops are ``loops`` (None
+    where they do not split into simple loops).
+
+    An island whose faces, wound alike, turn one way in the plane and whose boundary loops bound
+    as much area as its faces covers what the loops bound, once: only the loops need uniting,
+    not every triangle (QA: uniting 100,000 triangles took 3.2 s, so meshes over 2,000 vertices
+    were not asked, and their overlapping islands were joined into one outline)."""
+    count = parts.max() + 1
+    cross = triangle_cross(flat, wound_alike(tris))  # a face with its normal flipped still turns as its island
     areas = 0.5 * np.bincount(parts, weights=np.abs(cross), minlength=count)
     one_way = (np.bincount(parts, weights=cross > 0.0, minlength=count) == 0) \
         | (np.bincount(parts, weights=cross < 0.0, minlength=count) == 0)
     loops = list(loops or ())
-    loop_part = vertex_part[[loop[0] for loop in loops]] if loops else np.zeros(0, dtype=np.int64)
-    shapes = np.full(count, None, dtype=object)
-    simple = np.flatnonzero((one_way & (np.bincount(loop_part, minlength=count) == 1))[loop_part])
-    if len(simple):  # islands bounded by one loop each (most): their polygons made at once
-        ring_index = np.repeat(np.arange(len(simple)), [len(loops[i]) for i in simple])
-        polygons = shapely.polygons(shapely.linearrings(np.concatenate([flat[loops[i]] for i in simple]),
-                                                        indices=ring_index))
-        island = loop_part[simple]
-        kept = shapely.is_valid(polygons) & (np.abs(shapely.area(polygons) - areas[island]) <= 1e-6 * areas[island])
-        shapes[island[kept]] = polygons[kept]
-    by_island = np.argsort(parts, kind="stable")
-    island_tris = np.split(by_island, np.cumsum(np.bincount(parts, minlength=count))[:-1])
+    loop_parts = point_parts[[loop[0] for loop in loops]] if loops else np.zeros(0, dtype=np.int64)
+    shapes = _loop_covers(flat, loops, loop_parts, one_way, areas)
+    island_tris = _grouped(parts, count)
     self_overlap = False
-    for k in [k for k in range(count) if shapes[k] is None]:
-        rings = [flat[loop] for loop, part in zip(loops, loop_part) if part == k]
-        shapes[k] = _loops_cover(rings, area=areas[k]) if one_way[k] else None
-        if shapes[k] is None:  # the faces themselves decide
-            shapes[k] = shapely.union_all(shapely.polygons(flat[tris[island_tris[k]]]))
-            self_overlap |= shapes[k].area < areas[k] * (1.0 - 1e-6)
+    for k in [k for k in range(count) if shapes[k] is None]:  # the faces themselves decide
+        shapes[k] = shapely.union_all(shapely.polygons(flat[tris[island_tris[k]]]))
+        self_overlap |= shapes[k].area < areas[k] * (1.0 - 1e-6)
     covered = shapely.union_all(shapes).area if count > 1 else shapes[0].area
-    return _Cover(parts, self_overlap or covered < areas.sum() * (1.0 - 1e-6), self_overlap)
+    return _Cover(self_overlap or covered < areas.sum() * (1.0 - 1e-6), self_overlap)
 
 
-def _loops_cover(rings, area):
-    """What an island's boundary ``rings`` bound, where its faces turn one way and cover
-    ``area`` in all, as the rings bound: then each place once. None where that does not
-    follow."""
-    if not rings:
-        return None
-    try:
-        shape = shape_geometry(rings)
-    except ValueError:
-        return None
-    return shape if abs(shape.area - area) <= 1e-6 * area else None
+def _grouped(labels, count):
+    """The indices of each of ``count`` labels in ``labels`` (k,): a list of ``count`` arrays."""
+    order = np.argsort(labels, kind="stable")
+    return np.split(order, np.cumsum(np.bincount(labels, minlength=count))[:-1])
+
+
+def _loop_covers(flat, loops, loop_parts, one_way, areas):
+    """Per island (``areas`` (c,) of its faces, ``one_way`` (c,) whether they turn one way), the
+    polygon its boundary ``loops`` bound (the largest its shell, the rest its holes) where that
+    covers its faces once, all made at once; None elsewhere. (c,) object array."""
+    shapes = np.full(len(areas), None, dtype=object)
+    chosen = np.flatnonzero(one_way[loop_parts])
+    if not len(chosen):
+        return shapes
+    lengths = np.array([len(loops[i]) for i in chosen])
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    points = np.concatenate([flat[loops[i]] for i in chosen])
+    following = np.arange(1, len(points) + 1)
+    following[starts + lengths - 1] = starts  # each loop's last point is followed by its first
+    x, y = points.T
+    loop_areas = 0.5 * np.abs(np.add.reduceat(x * y[following] - x[following] * y, starts))
+    island = loop_parts[chosen]
+    order = np.lexsort((-loop_areas, island))  # by island, its shell first
+    rings = shapely.linearrings(points, indices=np.repeat(np.arange(len(chosen)), lengths))[order]
+    islands, dense = np.unique(island[order], return_inverse=True)
+    polygons = shapely.polygons(rings, indices=dense.ravel())
+    kept = shapely.is_valid(polygons) & (np.abs(shapely.area(polygons) - areas[islands]) <= 1e-6 * areas[islands])
+    shapes[islands[kept]] = polygons[kept]
+    return shapes
 
 
 def unbind(obj):

@@ -431,11 +431,23 @@ def test_a_puppets_overlapping_islands_move_apart(addon, flipped, graph_mode):
     assert_arm_up_body_still(checks.evaluated_mesh_points(obj), rest, np.arange(len(rest)) >= body)
 
 
-def test_a_dense_puppets_overlapping_islands_move_apart(addon):
+@pytest.mark.parametrize("body", ["whole", "a face flipped", "a hole"])
+def test_a_dense_puppets_overlapping_islands_move_apart(addon, body):
     """Past 2,000 vertices Bind did not ask whether the islands overlap (uniting every triangle
     took 3.2 s at 100,000), and built one outline of them all: the arm was glued to the body
-    (QA). Each island's boundary loops say what it covers, and the arm moves alone."""
-    obj, body = puppet(detail=8)
+    (QA). Each island's boundary loops say what it covers (a flipped face turns with its
+    island; a hole is one of its loops), and the arm moves alone."""
+    obj, n_body = puppet(detail=8)
+    if body == "a face flipped":
+        wind_the_other_way(obj, [0])
+    elif body == "a hole":
+        bm = bmesh.new()
+        bm.from_mesh(obj.data)
+        bm.faces.ensure_lookup_table()
+        bmesh.ops.delete(bm, geom=[bm.faces[4 * 64 + 4]], context="FACES_ONLY")
+        bm.to_mesh(obj.data)
+        bm.free()
+    body = n_body
     rest = checks.mesh_points(obj).copy()
     assert len(rest) > 2000
     pose_puppet(obj)
