@@ -24,7 +24,7 @@ FOLLOW = "Shape Deform"  # the constraint by which a handle follows a curve with
 
 # Constraints that set the space a transform lives in, as a parent does (Blender's transform
 # reads such a space off the evaluated matrices too).
-PARENTING_CONSTRAINTS = {"CHILD_OF", "FOLLOW_PATH", "CLAMP_TO", "OBJECT_SOLVER", "FOLLOW_TRACK"}
+PARENTING_CONSTRAINTS = {"CHILD_OF", "ARMATURE", "FOLLOW_PATH", "CLAMP_TO", "OBJECT_SOLVER", "FOLLOW_TRACK"}
 
 
 def parent_space(handle):
