@@ -9,6 +9,7 @@ changing. A frame stepped to is solved with the Render budget at once. Another t
 moved by hand to the points they are left on once the move is over.
 """
 
+import sys
 import traceback
 from contextlib import contextmanager
 
@@ -63,7 +64,7 @@ def _report(messages):
 def _pose(objects, depsgraph, final=None, refine=True):
     """Pose ``objects``' rigs and write their cages (``final``: with the Render budget; by
     default, :func:`rig.final_quality`); with ``refine``, have those a Viewport-budget solve
-    left short refined once the updates pause.
+    left short refined once the updates pause. Returns why rigs failed ([str]).
 
     Blender evaluates again by itself when a depsgraph_update_post or frame_change_post
     handler tagged data (a second pass without callbacks), so what is evaluated when the
@@ -73,13 +74,15 @@ def _pose(objects, depsgraph, final=None, refine=True):
     parented, a modifier added).
     """
     if not objects:
-        return
+        return []
     with paused():  # writing the cages makes Blender call us back
         messages = [rig.pose_safely(obj, depsgraph, final) for obj in objects
                     if not rig_format.is_baked(obj)]  # a baked rig's keys play (see bake.py)
-    _report([m for m in messages if m])
+    messages = [m for m in messages if m]
+    _report(messages)
     if refine and not (final or rig.final_quality()):
         _refine_later(objects)
+    return messages
 
 
 def _refine_later(owners=None):
@@ -246,7 +249,10 @@ def on_frame_change(scene, depsgraph):
     owners = [o for o in rig_format.owners(scene, depsgraph) if o.shapedeform.handles]
     interactive = _interactive()
     if not interactive:
-        _pose(owners, depsgraph, final=True)
+        failures = _pose(owners, depsgraph, final=True)
+        if _windowless():  # a farm's render: its log is all anyone reads (QA: a frame failed unsaid)
+            for message in failures:
+                print(f"Shape Deform: frame {scene.frame_current}: {message}", file=sys.stderr, flush=True)
         return
     view_layer, seen = bpy.context.view_layer, []
     for obj in owners:

@@ -31,6 +31,25 @@ def test_a_handle_moved_to_nan_keeps_the_last_pose_and_reports(addon):
     assert np.all(np.isfinite(checks.evaluated_mesh_points(obj)))
 
 
+def test_a_frame_a_headless_render_cannot_pose_is_told_in_its_log(addon, capfd):
+    """A farm's Render Animation of a frame a rig cannot pose (a handle keyed to NaN) rendered
+    the pose of the frame before and said nothing: the reason went into the owner's status,
+    which no one reads headless (QA). The frame handler prints it with the frame."""
+    obj, _, handle = rig_with_two_handles()
+    handle.keyframe_insert("location", frame=1)
+    handle.location.x = math.nan
+    handle.keyframe_insert("location", frame=6)
+    scene = bpy.context.scene
+    scene.frame_set(1)
+    capfd.readouterr()
+    scene.frame_set(6)
+    assert np.all(np.isfinite(checks.evaluated_mesh_points(obj)))
+    said = capfd.readouterr().err
+    assert f"Shape Deform: frame 6: '{handle.name}': its transform is not a finite number" in said
+    scene.frame_set(1)
+    assert "Shape Deform" not in capfd.readouterr().err
+
+
 def test_an_object_scaled_to_zero_poses_bakes_and_comes_back(addon, quiet):
     """Keying the object's scale to 0 (popping it in and out) and flattening it across its
     plane: no traceback, no NaN, the bake runs through such frames and puts the scene back,
