@@ -145,7 +145,7 @@ def baked_frames(obj):
     cage = obj.shapedeform.cage
     key = cage.data.shape_keys if cage is not None and cage.data is not None else None
     mark = key.get(FRAMES) if key is not None else None
-    if mark is None:  # a bake from before the Key held them
+    if mark is None and rig_format.is_baked(obj):  # a bake from before the Key held them
         mark = obj.shapedeform.get(BAKED)
     return tuple(int(value) for value in mark) if mark is not None and len(mark) == 3 else None
 
@@ -191,6 +191,12 @@ FIRST_FRAME = bpy.types.Scene.bl_rna.properties["frame_current"].hard_min
 LAST_FRAME = bpy.types.Scene.bl_rna.properties["frame_current"].hard_max
 
 
+def frames_text(first, last):
+    """"frame 5" or "frames 1 to 24": frames may be negative, so no dash between them (QA:
+    "frames -5--1")."""
+    return f"frame {first}" if first == last else f"frames {first} to {last}"
+
+
 def check_frames(frame_start, frame_end, step=1):
     """ValueError naming the problem when ``frame_start``-``frame_end`` every ``step`` frames
     is not a range of frames Blender has."""
@@ -199,7 +205,7 @@ def check_frames(frame_start, frame_end, step=1):
     if frame_end < frame_start:
         raise ValueError(f"the last frame ({frame_end}) comes before the first ({frame_start})")
     if frame_start < FIRST_FRAME or frame_end > LAST_FRAME:
-        raise ValueError(f"frames {frame_start}-{frame_end} run past Blender's, which go from {FIRST_FRAME} "
+        raise ValueError(f"{frames_text(frame_start, frame_end)} run past Blender's, which go from {FIRST_FRAME} "
                          f"to {LAST_FRAME}")
 
 
@@ -396,7 +402,7 @@ class Bake:
             clear(obj)
             frames, step = self.frames_of[obj.name]
             _write_keys(obj.shapedeform.cage, frames, step, self.captured[obj.name], self.times[obj.name])
-            obj.shapedeform[BAKED] = [frames[0], frames[-1], step]
+            obj.shapedeform[BAKED] = [frames[0], frames[-1], step]  # what earlier versions read
             rig_format.store_bake_source(obj.shapedeform.cage, *bake_source.fingerprint(obj))
             bake_source.forget(obj)
         self.captured.clear()

@@ -123,8 +123,7 @@ def _bake(args):
     objects = _rigs_to_bake(args.objects, scene, depsgraph)
     start, end = args.frames or (scene.frame_start, scene.frame_end)
     names = ", ".join(o.name for o in objects)
-    # "to", not a dash: frames may be negative (QA: "baking frames -5--5").
-    print(f"{COMMAND}: baking frames {start} to {end} (step {args.step}) of {names}", flush=True)
+    print(f"{COMMAND}: baking {bake.frames_text(start, end)} (step {args.step}) of {names}", flush=True)
 
     def progress(done, total):
         print(f"{COMMAND}: frame {done}/{total}", flush=True)

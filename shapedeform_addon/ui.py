@@ -120,7 +120,7 @@ class SHAPEDEFORM_PT_animation(_RigSubPanel, bpy.types.Panel):
             col.operator("shapedeform.bake", icon="REC")
             return
         frames = bake.baked_frames(obj)
-        baked = f"Baked {_frames(*frames[:2])}" if frames is not None else "Baked"
+        baked = f"Baked {bake.frames_text(*frames[:2])}" if frames is not None else "Baked"
         col.label(text=f"{baked}: the keyframes play, the rig waits", icon="KEYFRAME_HLT")
         if bake_source.is_out_of_date(obj):
             col.label(text="Out of date: handles or settings changed since the bake", icon="ERROR")
@@ -135,10 +135,6 @@ class SHAPEDEFORM_PT_animation(_RigSubPanel, bpy.types.Panel):
         row.operator("shapedeform.clear_bake", icon="TRASH")
 
 
-def _frames(first, last):
-    return f"frame {first}" if first == last else f"frames {first}-{last}"
-
-
 def _outside_bake(scene, frames):
     """A line on the frames of ``scene``'s range outside ``frames`` (first, last), where a bake
     plays, which hold its nearest pose (the range grown after baking, the bake retimed); "" when
@@ -146,8 +142,8 @@ def _outside_bake(scene, frames):
     if frames is None:
         return ""
     start, end = scene.frame_start, scene.frame_end
-    parts = ([_frames(start, min(frames[0] - 1, end))] if start < frames[0] else []) + \
-        ([_frames(max(frames[1] + 1, start), end)] if end > frames[1] else [])
+    parts = ([bake.frames_text(start, min(frames[0] - 1, end))] if start < frames[0] else []) + \
+        ([bake.frames_text(max(frames[1] + 1, start), end)] if end > frames[1] else [])
     return f"The scene's {' and '.join(parts)} hold the nearest baked pose" if parts else ""
 
 

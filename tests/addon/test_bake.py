@@ -985,7 +985,7 @@ def test_a_bake_says_it_is_out_of_date_once_what_it_was_made_from_changes(addon)
         checks.select_only(obj)
         labels = drawn(bpy.context, labels=True)
         assert labels.index("Out of date: handles or settings changed since the bake") == \
-            labels.index("Baked frames 1-6: the keyframes play, the rig waits") + 1
+            labels.index("Baked frames 1 to 6: the keyframes play, the rig waits") + 1
         assert {"shapedeform.bake", "shapedeform.clear_bake"} <= set(drawn(bpy.context))
         assert bake.bake_objects([obj], 1, 6) == [obj]
     assert not any(label.startswith("Out of date") for label in drawn(bpy.context, labels=True))

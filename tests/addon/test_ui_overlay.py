@@ -104,16 +104,16 @@ def test_panel_offers_bind_then_handles_weights_and_bake_then_bake_again_and_cle
     # The scene's range grown after baking: the frames left out are told (they hold a pose).
     bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 2
     labels = drawn(bpy.context, labels=True)
-    assert "Baked frames 1-2: the keyframes play, the rig waits" in labels
+    assert "Baked frames 1 to 2: the keyframes play, the rig waits" in labels
     assert not any("hold the nearest baked pose" in label for label in labels)
     bpy.context.scene.frame_start, bpy.context.scene.frame_end = 0, 40
-    assert "The scene's frame 0 and frames 3-40 hold the nearest baked pose" in drawn(bpy.context, labels=True)
+    assert "The scene's frame 0 and frames 3 to 40 hold the nearest baked pose" in drawn(bpy.context, labels=True)
     # Its keys retimed in the Graph Editor (moved 5 frames later), the bake plays on 6-7.
     animation = obj.shapedeform.cage.data.shape_keys.animation_data
     curve = addon.shapedeform_addon.compat.channelbag(animation.action, animation.action_slot).fcurves[0]
     for point in curve.keyframe_points:
         point.co.x += 5
-    assert "The scene's frames 0-5 and frames 8-40 hold the nearest baked pose" in drawn(bpy.context, labels=True)
+    assert "The scene's frames 0 to 5 and frames 8 to 40 hold the nearest baked pose" in drawn(bpy.context, labels=True)
 
 
 def test_pins_show_their_kind_and_values_and_the_overlay_tints_their_reach(addon):
