@@ -90,8 +90,9 @@ def trace_silhouette(image, level=0.5, tolerance=0.5, max_vertices=None, min_are
     below = np.nextafter(level, -np.inf)
     # A border of the emptiest pixel closes every contour, so a shape meets the image's edge as
     # it meets an empty pixel inside (a border below every value pulled a shape touching the
-    # edge a sixth of a pixel in). Where no pixel is below the level, the border lies as far
-    # below it as the most opaque pixel lies above, so the contour runs along the edge.
+    # edge a sixth of a pixel in), then stops at the edge (_within_picture). Where no pixel is
+    # below the level, the border lies as far below it as the most opaque pixel lies above, so
+    # the contour runs along the edge.
     empty = values.min()
     if not empty < below:
         empty = min(2.0 * level - values.max(), np.nextafter(below, -np.inf))

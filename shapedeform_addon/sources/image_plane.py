@@ -319,7 +319,9 @@ def _cutout_rings(obj, node, reader, picture_layer, uv, loop_points, loop_triang
     # Only what the plane shows: its UVs may frame part of the picture (a sprite sheet's).
     margin = _FILTER_MARGIN.get(node.interpolation, max(_FILTER_MARGIN.values()))
     try:
-        rings = image_cutout(alpha, margin=margin, window=window, wrap=node.extension == "REPEAT")
+        # Repeating, a filtered edge blends in the opposite one (Closest filters nothing in).
+        wrap = node.extension == "REPEAT" and node.interpolation != "Closest"
+        rings = image_cutout(alpha, margin=margin, window=window, wrap=wrap)
     except ValueError as err:
         raise RigError(f"'{obj.name}' cannot be rigged: {err}") from None
     return to_plane(rings), to_plane(shown_frame(width, height, window)), notes

@@ -166,9 +166,11 @@ def _with_neighbours(geometry, width, height, margin):
     ``margin`` of the ``width`` x ``height`` picture (QA: the faint pixels they filter in along its
     edges, 50-240 of them, were left out); unchanged where none does."""
     frame = shapely.box(0, 0, width, height)
-    copies = [shapely.affinity.translate(geometry, dx * width, dy * height)
+    reach = 2.0 * margin  # what the grown copy can bring in, and what its simplification can move
+    copies = [shapely.clip_by_rect(shapely.affinity.translate(geometry, dx * width, dy * height),
+                                   -reach, -reach, width + reach, height + reach)
               for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy]
-    near = [copy for copy in copies if shapely.distance(copy, frame) < margin]
+    near = [copy for copy in copies if not copy.is_empty and shapely.distance(copy, frame) < margin]
     return shapely.union_all([geometry, *near]) if near else geometry
 
 

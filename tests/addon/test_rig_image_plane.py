@@ -254,11 +254,12 @@ def test_the_cut_out_covers_what_the_pictures_filter_shows(addon, tmp_path, inte
                                f"{alpha[faint][clipped].max():.4f}")
 
 
-@pytest.mark.parametrize("interpolation", ["Linear", "Cubic"])
+@pytest.mark.parametrize("interpolation", ["Linear", "Cubic", "Closest"])
 def test_the_cut_out_of_a_repeating_picture_covers_the_far_edges_filtered_in(addon, tmp_path, interpolation):
     """With Extension Repeat, filtering blends each edge of the picture with the opposite one:
     pixels touching the right and top edges show faintly along the left and bottom ones, and
-    the cut-out, clipped to the picture, left 50-240 such pixels out (QA)."""
+    the cut-out, clipped to the picture, left 50-240 such pixels out (QA). Closest blends
+    nothing in, and the cut-out gets no band there."""
     yy, xx = np.mgrid[:H, :W]
     pixels = np.zeros((H, W, 4), np.float32)
     pixels[..., 3] = ((xx >= W - 6) & (yy > 10) & (yy < 30)) | ((yy >= H - 4) & (xx > 20) & (xx < 40))
@@ -268,6 +269,9 @@ def test_the_cut_out_of_a_repeating_picture_covers_the_far_edges_filtered_in(add
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     texels = uv_of_points(obj.data) * (W, H)
     triangles = texels[checks.triangles(obj)]
+    if interpolation == "Closest":
+        assert not inside_triangles(np.array([[0.25, 20.0], [30.0, 0.25]]), triangles).any()
+        return
     xs, ys = np.arange(0.0, W, 0.125), np.arange(0.0, H, 0.125)
 
     def wrapped(samples, count):  # offsets from every texel's centre, the nearer way round
