@@ -125,15 +125,18 @@ def on_depsgraph_update(scene, depsgraph):
     handles.follow_active_object(depsgraph.view_layer)
     moved = {}
     collections = [update.id for update in depsgraph.updates if isinstance(update.id, bpy.types.Collection)]
+    held = set()  # the collections of rigs' handles and cages
     if collections:
         for obj in rig_format.bound_objects():  # an object moved between collections, perhaps a handle
             if rig_format.is_owner(obj):
                 handles.keep_in_collection(obj)
+                held.add(obj.shapedeform.handle_collection)
     # A character linked, overridden, appended or instanced updates a collection; one linked into
     # a scene (Ctrl+L) the scene alone. A handle's move updates its rig's collection of handles
-    # (QA: the scenes were looked through on every step of a drag), which shows no character.
+    # (QA: the scenes were looked through on every step of a drag), which shows no character
+    # (Bind makes it for the handles and the cage alone).
     if any(isinstance(update.id, bpy.types.Scene) for update in depsgraph.updates) or \
-            not _only_handle_collections(collections):
+            any(collection.original not in held for collection in collections):
         # A collection instance pointed at another collection changes no scene's objects (QA).
         _lock_scenes(force=any(isinstance(update.id, bpy.types.Object) and update.id.instance_type == "COLLECTION"
                                for update in depsgraph.updates))
@@ -169,13 +172,6 @@ def on_depsgraph_update(scene, depsgraph):
         if rig.stale(owner) if is_pin else update.is_updated_transform:
             moved[owner.name] = owner
     _pose(list(moved.values()), depsgraph)
-
-
-def _only_handle_collections(collections):
-    """Whether every one of ``collections`` (updated) holds a rig's handles (its handles and
-    cage): none of them shows a character."""
-    held = {obj.shapedeform.handle_collection for obj in rig_format.bound_objects() if rig_format.is_owner(obj)}
-    return all(collection.original in held for collection in collections)
 
 
 def _pin_moved_by_hand(pin, owner):

@@ -206,22 +206,25 @@ def _layer_islands(obj, rigged, settings):
     """
     data = obj.data
     names = [layer.name for layer in data.layers]
-    others = rig_format.other_rigged_users(obj)
-    attribute = _layer_attribute(data, ISLAND, "INT8") if others else None
+    # The rigs of this data that keep layers apart: their numbers are on the layers.
+    apart = [other for other in rig_format.other_rigged_users(obj) if LAYER_ISLANDS in other.shapedeform]
+    attribute = _layer_attribute(data, ISLAND, "INT8") if apart else None
     numbers = _layer_values(attribute, len(names)) if attribute is not None else np.zeros(len(names), np.int32)
     place = {name: i for i, name in enumerate(names)}
-    rigged = np.array([place[layer.name] for layer in rigged])
-    fresh = rigged[numbers[rigged] == 0]
+    rigged_at = np.array([place[layer.name] for layer in rigged])
+    fresh = rigged_at[numbers[rigged_at] == 0]
     numbers[fresh] = numbers.max(initial=0) + 1 + np.arange(len(fresh), dtype=np.int32)
     if numbers.max() > MAX_PARTS:
-        raise RigError(f"'{obj.name}': with the rigs of '{others[0].name}', which shares its drawing, Layers Apart "
+        raise RigError(f"'{obj.name}': with the rig of '{apart[0].name}', which shares its drawing, Layers Apart "
                        f"would number more than {MAX_PARTS} layers: choose fewer in Layers, or give it a drawing of "
                        "its own (Object > Relations > Make Single User)")
-    own = numbers[rigged]
+    own = numbers[rigged_at]
     empty = [layer.name for layer in _chosen_layers(obj, settings)
-             if place[layer.name] not in rigged and own.min() <= numbers[place[layer.name]] <= own.max()]
+             if place[layer.name] not in rigged_at and own.min() <= numbers[place[layer.name]] <= own.max()]
     if empty:
-        raise RigError(f"'{obj.name}': its layer '{empty[0]}', kept apart by the rig of '{others[0].name}' "
+        holder = next((other for other in apart if _kept_values(other.shapedeform, LAYER_ISLANDS).get(empty[0])),
+                      apart[0])
+        raise RigError(f"'{obj.name}': its layer '{empty[0]}', kept apart by the rig of '{holder.name}' "
                        "(which shares its drawing), has nothing drawn on this frame: bind on a frame where it has "
                        "strokes, leave it out of Layers, or give it a drawing of its own (Make Single User)")
     return numbers, own
