@@ -123,7 +123,7 @@ def unbind(obj):
     legacy = rig_format.is_legacy(obj)
     if rig_format.is_follower(obj):
         return duplicates.release_follower(obj)
-    source = sources.module_for(obj)
+    source = sources.unbinding_module(obj)
     # Followers first: released, they no longer count as rigs of data they share with it.
     lost = duplicates.release_followers(obj)
     if settings.cage is None:

@@ -35,12 +35,14 @@ which part a handle at a selected point holds where islands overlap (a puppet's 
 a body vertex); :func:`selected_islands` gives None for the other sources.
 """
 
+import types
+
 from ..errors import RigError, with_article
 from . import curve, grease_pencil, image_plane, mesh, text
 from .prepared import Prepared
 
 __all__ = ["RigError", "with_article", "type_name", "Prepared", "module_for", "kind_of", "selected_islands",
-           "overlap_pin_notes", "part_ranks"]
+           "overlap_pin_notes", "part_ranks", "unbinding_module"]
 
 
 def type_name(obj):
@@ -58,6 +60,19 @@ def module_for(obj):
     stored = obj.shapedeform.kind if obj.shapedeform.is_bound else ""
     kind = stored if stored in {"MESH", "IMAGE"} and obj.type == "MESH" else kind_of(obj)
     return {"MESH": mesh, "IMAGE": image_plane, "CURVE": curve, "GREASEPENCIL": grease_pencil, "TEXT": text}[kind]
+
+
+def unbinding_module(obj):
+    """:func:`module_for` ``obj``, or, for an object converted since Bind to a kind no source
+    rigs (Object > Convert > Curves makes hair curves), one that has nothing to give back: the
+    rig alone goes (QA: Unbind refused, and left the cage and handles in the file)."""
+    try:
+        return module_for(obj)
+    except RigError:
+        return _CONVERTED
+
+
+_CONVERTED = types.SimpleNamespace(unbind=lambda obj: [], restore_legacy=lambda obj: [])
 
 
 def kind_of(obj):

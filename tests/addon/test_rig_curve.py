@@ -447,3 +447,21 @@ def test_a_smooth_joint_stays_smooth(addon):
     incoming, outgoing = points - left, after - points
     cosine = np.einsum("ij,ij->i", incoming, outgoing) / np.linalg.norm(incoming, axis=1) / np.linalg.norm(outgoing, axis=1)
     assert np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))).max() < 0.5
+
+
+def test_a_curve_converted_to_hair_curves_unbinds(addon, quiet):
+    """Object > Convert > Curves keeps the pose but drops the rig's modifier, and the status
+    says Unbind removes the rig; Unbind refused ("a hair curves object: Shape Deform rigs
+    meshes, ...") and left the cage and handles in the file (QA). The rig goes; the converted
+    object keeps its shape."""
+    obj, (_, right) = bezier_circle_with_handles()
+    right.location.y += 0.4
+    bpy.context.view_layer.update()
+    cage, handles = obj.shapedeform.cage.name, [item.object.name for item in obj.shapedeform.handles]
+    checks.select_only(obj)
+    assert bpy.ops.object.convert(target="CURVES") == {"FINISHED"}
+    obj = bpy.context.active_object
+    assert obj.type == "CURVES" and obj.shapedeform.is_bound
+    assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
+    assert not obj.shapedeform.is_bound
+    assert cage not in bpy.data.objects and not any(name in bpy.data.objects for name in handles)
