@@ -1896,6 +1896,22 @@ def test_binding_over_a_mirror_says_the_mirrored_half_is_not_rigged(addon, tmp_p
     assert "'Copies' adds" in out.out + out.err and "apply them before binding" in out.out + out.err
 
 
+@pytest.mark.parametrize("kind", ["CURVE", "LATTICE"])
+def test_binding_over_a_bending_modifier_says_handles_pull_the_shape_unbent(addon, tmp_path, capfd, kind):
+    """A rope bent along a path by a Curve modifier (or a Lattice's) is rigged as its data lies,
+    unbent: a drag of its end moved it 3.4 times as far, another way, and Bind said nothing (QA).
+    Bind says so, and what to do."""
+    obj = make_mesh(tmp_path)
+    modifier = obj.modifiers.new("Bend", kind)
+    modifier.object = bpy.data.objects.new("Guide", bpy.data.curves.new("Guide", "CURVE") if kind == "CURVE"
+                                           else bpy.data.lattices.new("Guide"))
+    bpy.context.view_layer.objects.active = obj
+    capfd.readouterr()
+    assert bpy.ops.shapedeform.bind() == {"FINISHED"}
+    out = capfd.readouterr()
+    assert "before 'Bend' bends it" in out.out + out.err and "apply it before binding" in out.out + out.err
+
+
 def test_playback_solves_a_rig_whose_handles_stay_put_once(addon, tmp_path):
     """A rig nobody animated gives the same targets on every frame: its solve is reused (a pose
     depends on its targets alone), while an animated rig beside it solves every frame. Each
