@@ -205,7 +205,8 @@ def check_frames(frame_start, frame_end, step=1):
     if frame_end < frame_start:
         raise ValueError(f"the last frame ({frame_end}) comes before the first ({frame_start})")
     if frame_start < FIRST_FRAME or frame_end > LAST_FRAME:
-        raise ValueError(f"{frames_text(frame_start, frame_end)} run past Blender's, which go from {FIRST_FRAME} "
+        runs = "runs" if frame_start == frame_end else "run"
+        raise ValueError(f"{frames_text(frame_start, frame_end)} {runs} past Blender's, which go from {FIRST_FRAME} "
                          f"to {LAST_FRAME}")
 
 

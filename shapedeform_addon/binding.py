@@ -20,9 +20,9 @@ from .errors import RigError
 # Modifiers that add geometry away from the object's own (a mirrored half, array copies); a
 # Geometry Nodes modifier may too.
 GENERATING = {"MIRROR", "ARRAY", "SCREW", "BOOLEAN", "GREASE_PENCIL_MIRROR", "GREASE_PENCIL_ARRAY"}
-# Modifiers that bend the whole shape away from its data (a rope bent along a path).
-BENDING = {"CURVE", "LATTICE", "ARMATURE", "SIMPLE_DEFORM", "MESH_DEFORM", "SURFACE_DEFORM",
-           "GREASE_PENCIL_LATTICE", "GREASE_PENCIL_ARMATURE"}
+# Modifiers that bend the whole shape away from its data (a rope bent along a path). Not an
+# Armature's: a skeleton in its rest pose bends nothing, and applying it would undo the rig.
+BENDING = {"CURVE", "LATTICE", "SIMPLE_DEFORM", "MESH_DEFORM", "SURFACE_DEFORM", "GREASE_PENCIL_LATTICE"}
 
 
 def refusal(obj):
@@ -78,7 +78,8 @@ def bind(obj):
         notes.append(f"the rig was built without what {', '.join(map(repr, adding))} add"
                      f"{by_count(len(adding), 's', '')}: their copies follow the nearest bound part; "
                      "apply them before binding to rig the whole shape")
-    bending = [m.name for m in obj.modifiers if m.type in BENDING and (m.show_viewport or m.show_render)]
+    bending = [m.name for m in obj.modifiers if m.type in BENDING and (m.show_viewport or m.show_render)
+               and getattr(m, "object", True) is not None and getattr(m, "is_bound", True)]  # idle ones bend nothing
     if bending:  # QA: a drag of a rope bent by a Curve modifier moved its end 3.4 times as far, elsewhere
         notes.append(f"the rig was built from the shape before {', '.join(map(repr, bending))} bend"
                      f"{by_count(len(bending), 's', '')} it, so handles pull the shape as it was: apply "

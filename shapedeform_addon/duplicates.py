@@ -11,7 +11,6 @@ found in a file; unbinding the owner releases its followers first (:func:`releas
 import bpy
 
 from . import handles, nodes, rig_format, sources
-from .errors import RigError
 from .sources import image_plane
 
 
@@ -255,11 +254,8 @@ def release_follower(obj):
     settings = obj.shapedeform
     # While its cage and modifier are there: they tell what transform was applied, and whether
     # it was converted (its pose its own then, kept).
-    try:
-        source = sources.module_for(obj)
-    except RigError:  # converted (Keep Original) to a type no rig is made on: new data, none of Bind's
-        source = None
-    lost = source.unbind(obj) if source is not None else []
+    # Converted (Keep Original) to a type no rig is made on: new data, none of Bind's.
+    lost = sources.unbinding_module(obj).unbind(obj)
     for modifier in rig_format.modifiers_of(obj):
         obj.modifiers.remove(modifier)
     if is_own_cage(obj, settings.cage):  # its own (follow), sharing the rig's mesh

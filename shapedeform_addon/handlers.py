@@ -248,7 +248,7 @@ def on_frame_change(scene, depsgraph):
         failures = _pose(owners, depsgraph, final=True)
         if _windowless():  # a farm's render: its log is all anyone reads (QA: a frame failed unsaid)
             for message in failures:
-                print(f"Shape Deform: frame {scene.frame_current}: {message}", file=sys.stderr, flush=True)
+                print(f"Shape Deform: frame {scene.frame_current_final:g}: {message}", file=sys.stderr, flush=True)
         return
     view_layer, seen = bpy.context.view_layer, []
     for obj in owners:

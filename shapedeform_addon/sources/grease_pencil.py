@@ -222,7 +222,8 @@ def _layer_islands(obj, rigged, settings):
     empty = [layer.name for layer in _chosen_layers(obj, settings)
              if place[layer.name] not in rigged_at and own.min() <= numbers[place[layer.name]] <= own.max()]
     if empty:
-        holder = next((other for other in apart if _kept_values(other.shapedeform, LAYER_ISLANDS).get(empty[0])),
+        number = numbers[place[empty[0]]]  # every rig keeps all layers' numbers: its cage says its own
+        holder = next((other for other in apart if number in set(rig_format.islands_of(other.shapedeform.cage.data))),
                       apart[0])
         raise RigError(f"'{obj.name}': its layer '{empty[0]}', kept apart by the rig of '{holder.name}' "
                        "(which shares its drawing), has nothing drawn on this frame: bind on a frame where it has "

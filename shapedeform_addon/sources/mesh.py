@@ -257,8 +257,8 @@ class _Cover(typing.NamedTuple):
 
 
 def _mesh_islands(flat, tris):
-    """Each triangle's island (t,) int64 and each point's (n,) int64 (a point on no face: its
-    own number, past the islands'), for triangles (t, 3) over points (n, 2)."""
+    """Each triangle's island (t,) int64 and each point's (n,) int64 (the points on no face all
+    one number, one past the islands'), for triangles (t, 3) over points (n, 2)."""
     sides = tris[:, [0, 1, 1, 2]].reshape(-1, 2)
     _, labels = connected_components(coo_matrix((np.ones(len(sides)), (sides[:, 0], sides[:, 1])),
                                                 shape=(len(flat), len(flat))), directed=False)

@@ -167,8 +167,9 @@ def _with_neighbours(geometry, width, height, margin):
     edges, 50-240 of them, were left out); unchanged where none does."""
     frame = shapely.box(0, 0, width, height)
     reach = 2.0 * margin  # what the grown copy can bring in, and what its simplification can move
-    copies = [shapely.clip_by_rect(shapely.affinity.translate(geometry, dx * width, dy * height),
-                                   -reach, -reach, width + reach, height + reach)
+    # GEOS does not promise a clip is valid: made so before the union.
+    copies = [shapely.make_valid(shapely.clip_by_rect(shapely.affinity.translate(geometry, dx * width, dy * height),
+                                                      -reach, -reach, width + reach, height + reach))
               for dx in (-1, 0, 1) for dy in (-1, 0, 1) if dx or dy]
     near = [copy for copy in copies if not copy.is_empty and shapely.distance(copy, frame) < margin]
     return shapely.union_all([geometry, *near]) if near else geometry

@@ -235,7 +235,7 @@ def test_command_line_bakes_a_saved_file(addon, tmp_path, capsys):
                          (["bake", "--output", str(tmp_path)], "is a folder"),
                          (["bake", "--frames", "1048570-1048580"], "run past Blender's"),
                          (["bake", "--frames", "1-3000000000"], "run past Blender's"),  # not 3e9 frames' memory
-                         (["bake", "--frames", "99999999999999999999"], "run past Blender's"),
+                         (["bake", "--frames", "99999999999999999999"], "frame 99999999999999999999 runs past Blender's"),
                          (["bake", "--view-layer", "Nobody"], "no view layer named 'Nobody'"),
                          (["bake", "--scene", "Nobody"], "no scene named 'Nobody'"),
                          (["bake", "--scene", ""], "no scene named ''"),  # an unset farm variable

@@ -1431,6 +1431,11 @@ def test_an_overrides_bake_keeps_its_frames_on_reopening(addon, tmp_path, quiet,
     assert addon.shapedeform_addon.bake.baked_frames(obj) == (1, 10, 2)
     keys = [block.name for block in obj.shapedeform.cage.data.shape_keys.key_blocks[1:]]
     assert keys == [addon.shapedeform_addon.bake.key_name(frame) for frame in (1, 3, 5, 7, 9, 10)]
+    # Cleared in the shot, the bake's frames are gone, whatever the owner gets back from its library.
+    assert bpy.ops.shapedeform.clear_bake() == {"FINISHED"}
+    bpy.ops.wm.save_as_mainfile(filepath=shot)
+    bpy.ops.wm.open_mainfile(filepath=shot)
+    assert addon.shapedeform_addon.bake.baked_frames(bpy.context.scene.objects["Grid"]) is None
 
 
 def test_an_override_saved_without_the_extension_keeps_its_rig(addon, tmp_path, quiet):
@@ -1896,20 +1901,25 @@ def test_binding_over_a_mirror_says_the_mirrored_half_is_not_rigged(addon, tmp_p
     assert "'Copies' adds" in out.out + out.err and "apply them before binding" in out.out + out.err
 
 
-@pytest.mark.parametrize("kind", ["CURVE", "LATTICE"])
+@pytest.mark.parametrize("kind", ["CURVE", "LATTICE", "CURVE with no curve", "ARMATURE"])
 def test_binding_over_a_bending_modifier_says_handles_pull_the_shape_unbent(addon, tmp_path, capfd, kind):
     """A rope bent along a path by a Curve modifier (or a Lattice's) is rigged as its data lies,
     unbent: a drag of its end moved it 3.4 times as far, another way, and Bind said nothing (QA).
-    Bind says so, and what to do."""
+    Bind says so, and what to do; not of a modifier that bends nothing (review), nor of an
+    Armature's (a skeleton at rest bends nothing, and applying it would undo the rig)."""
     obj = make_mesh(tmp_path)
-    modifier = obj.modifiers.new("Bend", kind)
-    modifier.object = bpy.data.objects.new("Guide", bpy.data.curves.new("Guide", "CURVE") if kind == "CURVE"
-                                           else bpy.data.lattices.new("Guide"))
+    modifier = obj.modifiers.new("Bend", kind.split()[0])
+    if kind in ("CURVE", "LATTICE"):
+        modifier.object = bpy.data.objects.new("Guide", bpy.data.curves.new("Guide", "CURVE") if kind == "CURVE"
+                                               else bpy.data.lattices.new("Guide"))
+    elif kind == "ARMATURE":
+        modifier.object = bpy.data.objects.new("Skeleton", bpy.data.armatures.new("Skeleton"))
     bpy.context.view_layer.objects.active = obj
     capfd.readouterr()
     assert bpy.ops.shapedeform.bind() == {"FINISHED"}
     out = capfd.readouterr()
-    assert "before 'Bend' bends it" in out.out + out.err and "apply it before binding" in out.out + out.err
+    said = "before 'Bend' bends it" in out.out + out.err and "apply it before binding" in out.out + out.err
+    assert said == (kind in ("CURVE", "LATTICE"))
 
 
 def test_playback_solves_a_rig_whose_handles_stay_put_once(addon, tmp_path):
