@@ -432,7 +432,7 @@ def test_a_puppets_overlapping_islands_move_apart(addon, flipped, graph_mode):
 
 
 @pytest.mark.parametrize("body", ["whole", "a face flipped", "a hole"])
-def test_a_dense_puppets_overlapping_islands_move_apart(addon, body):
+def test_a_dense_puppets_overlapping_islands_move_apart(addon, monkeypatch, body):
     """Past 2,000 vertices Bind did not ask whether the islands overlap (uniting every triangle
     took 3.2 s at 100,000), and built one outline of them all: the arm was glued to the body
     (QA). Each island's boundary loops say what it covers (a flipped face turns with its
@@ -459,17 +459,12 @@ def test_a_dense_puppets_overlapping_islands_move_apart(addon, body):
         return union_all(geometries, **kw)
 
     def watched(*args):
-        mesh_source.shapely.union_all = counted
-        try:
+        with monkeypatch.context() as patch:
+            patch.setattr(mesh_source.shapely, "union_all", counted)
             return cover(*args)
-        finally:
-            mesh_source.shapely.union_all = union_all
 
-    mesh_source._island_cover = watched
-    try:
-        pose_puppet(obj)
-    finally:
-        mesh_source._island_cover = cover
+    monkeypatch.setattr(mesh_source, "_island_cover", watched)
+    pose_puppet(obj)
     assert united == [2]  # the two islands' shapes, once
     assert_arm_up_body_still(checks.evaluated_mesh_points(obj), rest, np.arange(len(rest)) >= body)
 
