@@ -13,6 +13,8 @@ the rest of the add-on calls one name on every Blender. Nothing here is register
 - A Geometry Nodes modifier's inputs: ID properties of the modifier keyed by socket identifier
   up to 5.1; from 5.2 ``modifier.properties.inputs.<identifier>.value`` (the modifier takes no
   ID properties).
+- Where Blender draws a NURBS spline's samples: 5.0 on, ``resolution_u`` in every span of its
+  knots; before, ``resolution_u`` per gap between points, evenly over the whole curve.
 """
 
 import bpy
@@ -153,3 +155,8 @@ def filled_strokes(material_fills, material_index, fill_id):
     if bpy.app.version >= STROKES_MARK_FILLS:
         filled = filled & (fill_id != 0)
     return filled
+
+
+# Blender draws a NURBS spline's samples span by span from this version on (found by drawing
+# every order and knot kind on 4.5 and 5.0, tests/addon/test_rig_curve.py).
+NURBS_SAMPLED_PER_SPAN = bpy.app.version >= (5, 0, 0)

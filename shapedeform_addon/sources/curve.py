@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Curves: Bezier and poly splines, several of them (text converted to a curve has holes).
+"""Curves: Bezier, NURBS and poly splines, several of them (text converted to a curve has holes).
 
 Closed splines bound the shape, and so does a silhouette swept around open splines where they lie
 outside the closed ones (a tail beside a body, or a curve of open splines alone). Control points
@@ -27,7 +27,7 @@ import bpy
 import numpy as np
 
 from ...solver.outline import outline_graph
-from ...solver.rigging.outline import refine_level, sample_bezier, with_area
+from ...solver.rigging.outline import refine_level, sample_bezier, sample_nurbs, with_area
 from ...solver.rigging.plane import fit_plane
 from ...solver.rigging.silhouette import stroke_silhouette
 from ...solver.wording import by_count
@@ -62,7 +62,7 @@ def points(curve):
 
 
 def _rings_and_strokes(curve, flat):
-    """Closed splines as rings, open ones as polylines, in plane coordinates."""
+    """Closed splines as rings, open ones as polylines, in plane coordinates, as Blender draws them."""
     rings, strokes, start = [], [], 0
     for spline in curve.splines:
         if spline.type == "BEZIER":
@@ -73,6 +73,10 @@ def _rings_and_strokes(curve, flat):
         else:
             k = len(spline.points)
             line = flat[start:start + k]
+            if spline.type == "NURBS":
+                weights = _vectors(spline.points, "co", 4)[:, 3]
+                line = sample_nurbs(line, weights, spline.order_u, spline.use_cyclic_u, spline.use_endpoint_u,
+                                    spline.use_bezier_u, spline.resolution_u, compat.NURBS_SAMPLED_PER_SPAN)
             start += k
         if k < 2:
             continue  # a lone point: Blender draws nothing of it (a Bezier one looped round its handles, QA)

@@ -17,7 +17,7 @@ from ..shapes import clean_ring
 # docs/addon_speed.md times at 2.7 ms (benchmarks/addon_speed.py), so a text keeps playing live.
 REFINE_BUDGET = 50_000
 
-__all__ = ["boundary_loops", "sample_bezier", "smallest_angles", "with_area", "wound_alike", "refine_level"]
+__all__ = ["boundary_loops", "sample_bezier", "sample_nurbs", "smallest_angles", "with_area", "wound_alike", "refine_level"]
 
 
 def boundary_loops(triangles):
@@ -148,6 +148,112 @@ def sample_bezier(points, left, right, cyclic, resolution=12):
     if not cyclic:
         curve = np.concatenate([curve, p0[-1:]])
     return curve
+
+
+def sample_nurbs(points, weights, order, cyclic, endpoint=False, bezier=False, resolution=12, per_span=True):
+    """Points along a NURBS spline, as Blender draws it.
+
+    Blender's knots are whole numbers: the first ones repeated for Endpoint (the curve starts
+    and ends at its end points), the inner ones ``order - 1`` times for Bezier (the curve passes
+    through every ``order - 1``-th point). A spline Blender cannot draw (fewer points than its
+    order, or a Bezier count that does not fit the order) is drawn through its points, and so is
+    it returned.
+
+    Parameters
+    ----------
+    points : (k, d) array_like
+        Control points.
+    weights : (k,) array_like
+        Their weights (the fourth component of Blender's ``SplinePoint.co``).
+    order : int
+        Blender's ``order_u``: the degree plus one.
+    cyclic, endpoint, bezier : bool
+        ``use_cyclic_u``, ``use_endpoint_u`` and ``use_bezier_u``.
+    resolution : int
+        ``resolution_u``.
+    per_span : bool
+        How Blender spaces the samples: since 5.0 ``resolution`` in each span of nonzero
+        length; before, ``resolution`` per gap between points, evenly over the whole curve.
+
+    Returns
+    -------
+    (m, d) float64 ndarray
+        The samples in order; an open spline's last one is its end.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    weights = np.asarray(weights, dtype=np.float64)
+    k, order, resolution = len(points), int(order), max(int(resolution), 1)
+    if not _drawable_nurbs(k, order, cyclic, bezier, endpoint):
+        return points.copy()
+    knots = _nurbs_knots(k, order, cyclic, endpoint, bezier)
+    spans = k + (order - 1 if cyclic else 0)   # basis functions: a cyclic spline wraps its first points
+    if per_span:
+        starts, ends = knots[order - 1:spans], knots[order:spans + 1]
+        steps = np.arange(resolution) / resolution
+        t = (starts[ends > starts, None] + (ends - starts)[ends > starts, None] * steps).ravel()
+        if not cyclic:
+            t = np.append(t, knots[spans])
+    else:
+        count = resolution * (k if cyclic else k - 1)
+        t = np.linspace(knots[order - 1], knots[spans], count, endpoint=not cyclic)
+    basis = _bspline_basis(knots, order, t)[:, :spans]
+    # A cyclic spline's extra basis functions belong to its first points.
+    folded = np.zeros((len(t), k))
+    np.add.at(folded.T, np.arange(spans) % k, basis.T)
+    rational = folded * weights
+    return (rational @ points) / rational.sum(axis=1, keepdims=True)
+
+
+def _drawable_nurbs(count, order, cyclic, bezier, endpoint):
+    """Whether Blender draws a NURBS spline as a curve (else through its points)."""
+    if count < order or order < 2:
+        return False
+    if bezier:
+        if not endpoint and count <= order:
+            return False
+        return not cyclic or count % (order - 1) == 0
+    return True
+
+
+def _nurbs_knots(count, order, cyclic, endpoint, bezier):
+    """Blender's knot vector of a NURBS spline, (count + order (+ order - 1 when cyclic),)."""
+    total = count + order + (order - 1 if cyclic else 0)
+    repeat = order - 1 if bezier else 1
+    head = order - int(cyclic) if endpoint else (min(2, repeat) if bezier else 1)
+    tail = 2 * order - 1 if cyclic else (order if endpoint else 0)
+    first = int(endpoint and cyclic)   # cyclic with Endpoint: a lone knot 0 before the first run
+    body = total - tail - first
+    # The body counts up from `first` in runs: the first `head` long, the others `repeat`.
+    runs = np.where(np.arange(body) < head, 0, 1 + (np.arange(body) - head) // repeat)
+    knots = np.concatenate([np.zeros(first), first + runs])
+    run_complete = body >= head and (body - head) % repeat == 0
+    following = knots[-1] + 1 if run_complete else knots[-1]
+    # The tail repeats the widths of the first knots past the body; a tail longer than the body
+    # goes on repeating its own first knots.
+    knots = np.concatenate([knots, np.zeros(tail)])
+    for i in range(tail):
+        knots[body + first + i] = following + knots[i] - knots[0]
+    return knots
+
+
+def _bspline_basis(knots, order, t):
+    """Values of every B-spline basis function at parameters ``t``, (len(t), len(knots) - order).
+
+    Cox and de Boor's recursion, starting from the first span of nonzero length that holds each
+    parameter (its closed interval, so an open spline's last parameter is in its last span).
+    """
+    nonzero = knots[1:] > knots[:-1]
+    inside = (knots[:-1] <= t[:, None]) & (t[:, None] <= knots[1:]) & nonzero
+    values = np.zeros((len(t), len(knots) - 1))
+    values[np.arange(len(t)), inside.argmax(axis=1)] = 1.0
+    for degree in range(1, order):
+        width_up = knots[degree:-1] - knots[:-degree - 1]
+        width_down = knots[degree + 1:] - knots[1:-degree]
+        rising = np.divide(t[:, None] - knots[:-degree - 1], width_up, out=np.zeros((len(t), len(width_up))), where=width_up > 0)
+        falling = np.divide(knots[degree + 1:] - t[:, None], width_down, out=np.zeros_like(rising),
+                            where=width_down > 0)
+        values = rising * values[:, :-1] + falling * values[:, 1:]
+    return values
 
 
 def smallest_angles(points, triangles):

@@ -1,6 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Rigging curves: text converted to a curve (letters with holes), open splines, refusals."""
 
+import itertools
+
 import bpy
 import numpy as np
 import pytest
@@ -465,3 +467,47 @@ def test_a_curve_converted_to_hair_curves_unbinds(addon, quiet):
     assert bpy.ops.shapedeform.unbind() == {"FINISHED"}
     assert not obj.shapedeform.is_bound
     assert cage not in bpy.data.objects and not any(name in bpy.data.objects for name in handles)
+
+
+def test_nurbs_outlines_are_drawn_as_blender_draws_them(addon):
+    """The outline of a NURBS spline is the curve Blender draws, for every order, knot kind and
+    weighting (it was the control polygon, QA)."""
+    sample_nurbs = addon.solver.rigging.outline.sample_nurbs
+    rng = np.random.default_rng(5)
+    for order, cyclic, endpoint, bezier, count in itertools.product([2, 3, 4, 5], [False, True], [False, True],
+                                                                     [False, True], [5, 6, 8]):
+        curve = bpy.data.curves.new("Nurbs", "CURVE")
+        curve.dimensions, curve.fill_mode = "2D", "NONE"
+        spline = curve.splines.new("NURBS")
+        spline.points.add(count - 1)
+        co = np.column_stack([rng.normal(size=(count, 2)), np.zeros(count), rng.uniform(0.3, 2.0, count)])
+        spline.points.foreach_set("co", co.ravel())
+        spline.use_cyclic_u, spline.use_endpoint_u, spline.use_bezier_u = cyclic, endpoint, bezier
+        spline.order_u, spline.resolution_u = order, 5
+        obj = bpy.data.objects.new("Nurbs", curve)
+        bpy.context.scene.collection.objects.link(obj)
+        drawn = checks.evaluated_vertices(obj)[:, :2]
+        ours = sample_nurbs(co[:, :2], co[:, 3], order, cyclic, endpoint, bezier, 5,
+                            addon.shapedeform_addon.compat.NURBS_SAMPLED_PER_SPAN)
+        assert ours.shape == drawn.shape and np.abs(ours - drawn).max() < 1e-5, (order, cyclic, endpoint, bezier, count)
+        bpy.data.objects.remove(obj)
+        bpy.data.curves.remove(curve)
+
+
+def test_a_nurbs_circle_is_rigged_as_the_circle_it_draws(addon):
+    """Add > Curve > Nurbs Circle: its rig's cage is the disc Blender draws (it was the square of
+    its control points, reaching 1.41 from the centre for a circle of 1, QA), and the drawn
+    circle follows its handles."""
+    bpy.ops.curve.primitive_nurbs_circle_add(radius=1.0)
+    obj = bpy.context.active_object
+    obj.data.use_path = False
+    _, right = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
+    radii = np.linalg.norm(checks.mesh_points(checks.cage(obj))[:, :2], axis=1)
+    assert radii.max() == pytest.approx(1.0, abs=0.01)
+    right.location.y += 0.6
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    drawn = checks.evaluated_vertices(obj)
+    assert np.all(np.isfinite(drawn))
+    assert np.linalg.norm(drawn - [1.0, 0.6, 0.0], axis=1).min() < 0.03
+    assert np.linalg.norm(drawn - [-1.0, 0.0, 0.0], axis=1).min() < 0.03

@@ -1,13 +1,15 @@
 """solver.rigging.outline and solver.rigging.silhouette: mesh boundaries, Bezier outlines, stroke
 and image silhouettes, and the map that carries a picture's UVs onto its cut-out."""
 
+import itertools
+
 import numpy as np
 import pytest
 import shapely
 from scipy import ndimage
 
 from solver.rigging.handles import apply_affine
-from solver.rigging.outline import boundary_loops, refine_level, sample_bezier, with_area, wound_alike
+from solver.rigging.outline import boundary_loops, refine_level, sample_bezier, sample_nurbs, with_area, wound_alike
 from solver.rigging.silhouette import image_cutout, map_by_triangles, specks, stroke_silhouette
 from solver.shapes import shape_geometry
 
@@ -80,6 +82,38 @@ def test_bezier_sampling_hits_control_points_and_is_a_circle():
     np.testing.assert_allclose(np.linalg.norm(curve, axis=1), 1.0, atol=3e-4)
     open_curve = sample_bezier(points, points - k * tangent, points + k * tangent, cyclic=False, resolution=8)
     assert len(open_curve) == 25 and np.allclose(open_curve[-1], points[-1])
+
+
+def test_nurbs_sampling_draws_the_weighted_circle():
+    """Blender's NURBS circle: eight points round a square, the corners weighted 1/sqrt(2), order
+    3 with Endpoint and Bezier knots, is a circle through the edges' midpoints (the rig's outline
+    was the square, reaching 1.41 for a circle of 1, QA)."""
+    square = np.array([[0, -1], [-1, -1], [-1, 0], [-1, 1], [0, 1], [1, 1], [1, 0], [1, -1.0]])
+    weights = np.where(np.abs(square).sum(axis=1) == 2, np.sqrt(0.5), 1.0)
+    circle = sample_nurbs(square, weights, 3, cyclic=True, endpoint=True, bezier=True, resolution=12)
+    assert len(circle) == 48
+    np.testing.assert_allclose(np.linalg.norm(circle, axis=1), 1.0, atol=1e-12)
+    np.testing.assert_allclose(circle[::12], square[::2], atol=1e-12)
+
+
+@pytest.mark.parametrize("order", [2, 3, 4, 5])
+@pytest.mark.parametrize("cyclic", [False, True])
+def test_nurbs_sampling_properties_hold_for_any_spline(order, cyclic):
+    rng = np.random.default_rng(order + 10 * cyclic)
+    points, weights = rng.normal(size=(7, 2)), rng.uniform(0.2, 3.0, 7)
+    for endpoint, per_span in itertools.product((False, True), (False, True)):
+        curve = sample_nurbs(points, weights, order, cyclic, endpoint=endpoint, resolution=6, per_span=per_span)
+        # Positive weights keep every sample inside the points' hull; equal scaling changes nothing.
+        hull = shapely.MultiPoint(points).convex_hull.buffer(1e-9)
+        assert all(hull.contains(shapely.Point(p)) for p in curve)
+        np.testing.assert_allclose(sample_nurbs(points, 4 * weights, order, cyclic, endpoint=endpoint, resolution=6,
+                                                per_span=per_span), curve, atol=1e-12)
+        if endpoint and not cyclic:  # a clamped open spline starts and ends at its end points
+            np.testing.assert_allclose(curve[[0, -1]], points[[0, -1]], atol=1e-12)
+    if order == 2:  # straight spans through the points
+        np.testing.assert_allclose(sample_nurbs(points, weights, 2, cyclic, resolution=6)[::6], points, atol=1e-12)
+    # A spline Blender cannot draw as a curve is drawn through its points.
+    np.testing.assert_array_equal(sample_nurbs(points[:order - 1], weights[:order - 1], order, cyclic), points[:order - 1])
 
 
 def test_stroke_silhouette_is_the_swept_and_filled_union():
