@@ -436,9 +436,16 @@ def _map_bezier_handles(b, cage, geometry, selection):
 
 
 def _free(b, selection, side):
-    """``selection`` less the points whose ``side`` ("LEFT" or "RIGHT") handle is a vector one."""
+    """``selection`` less the points whose ``side`` ("LEFT" or "RIGHT") handle Blender derives
+    from the moved points: a vector handle, and an aligned one opposite a vector handle (Blender
+    lines it up with that one; mapped, it kinked the joint, QA)."""
+    other = "RIGHT" if side == "LEFT" else "LEFT"
     vector = b.node("GeometryNodeCurveHandleTypeSelection", handle_type="VECTOR", mode={side}).outputs[0]
-    return b.node("FunctionNodeBooleanMath", [selection, vector], operation="NIMPLY").outputs[0]
+    aligned = b.node("GeometryNodeCurveHandleTypeSelection", handle_type="ALIGN", mode={side}).outputs[0]
+    opposite_vector = b.node("GeometryNodeCurveHandleTypeSelection", handle_type="VECTOR", mode={other}).outputs[0]
+    follows = b.node("FunctionNodeBooleanMath", [aligned, opposite_vector], operation="AND").outputs[0]
+    derived = b.node("FunctionNodeBooleanMath", [vector, follows], operation="OR").outputs[0]
+    return b.node("FunctionNodeBooleanMath", [selection, derived], operation="NIMPLY").outputs[0]
 
 
 def _set_bezier_handles(b, cage, curve, selection, left, right, point):

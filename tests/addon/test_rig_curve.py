@@ -451,6 +451,29 @@ def test_a_smooth_joint_stays_smooth(addon):
     assert np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))).max() < 0.5
 
 
+@pytest.mark.parametrize("vector_side", ["LEFT", "RIGHT"])
+def test_an_aligned_handle_opposite_a_vector_one_stays_in_line(addon, vector_side):
+    """A joint with a Vector handle on one side and an Aligned one on the other is smooth in
+    Blender, which lines the Aligned handle up with the Vector one. Posed, the Aligned handle was
+    mapped on its own and the joint kinked (3.8 degrees at a drag of the radius; 26.6 in QA's
+    drawing)."""
+    bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)
+    obj = bpy.context.active_object
+    joint = obj.data.splines[0].bezier_points[1]
+    if vector_side == "LEFT":
+        joint.handle_left_type, joint.handle_right_type = "VECTOR", "ALIGNED"
+    else:
+        joint.handle_right_type, joint.handle_left_type = "VECTOR", "ALIGNED"
+    _, right = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
+    right.location.y += 1.0
+    bpy.context.view_layer.update()
+    points, left, after = checks.evaluated_curve_points(obj).reshape(3, -1, 3)
+    assert np.linalg.norm(points - [1.0, 1.0, 0.0], axis=1).min() < 0.05  # it did move
+    incoming, outgoing = points[1] - left[1], after[1] - points[1]
+    cosine = incoming @ outgoing / np.linalg.norm(incoming) / np.linalg.norm(outgoing)
+    assert np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))) < 0.5
+
+
 def test_a_curve_converted_to_hair_curves_unbinds(addon, quiet):
     """Object > Convert > Curves keeps the pose but drops the rig's modifier, and the status
     says Unbind removes the rig; Unbind refused ("a hair curves object: Shape Deform rigs
