@@ -62,7 +62,7 @@ from ..solver.rigging.outline import REFINE_BUDGET
 from . import compat
 
 GROUP_NAME = "Shape Deform"
-VERSION = 20
+VERSION = 21
 VERSION_KEY = "shapedeform_version"
 REST = "sd_rest"
 POSED = "sd_posed"  # only inside the group, on the cage
