@@ -56,9 +56,11 @@ The group is built from Python (no asset file to keep in step) and rebuilt when 
 extension's group is found (``VERSION``); the modifiers that use it keep their inputs.
 """
 
+import math
+
 import bpy
 
-from ..solver.rigging.outline import REFINE_BUDGET
+from ..solver.rigging.outline import REFINE_BUDGET, bezier_handle_fit
 from . import compat
 
 GROUP_NAME = "Shape Deform"
@@ -83,6 +85,11 @@ LEGACY_OWNER_INPUT = "Owner"
 REFINE_INPUT, ORDER_INPUT = "Refine", "Stroke Order"
 REFINE_MOST = 6  # the most times Refine subdivides
 CURVE_TYPE_BEZIER = 2  # the built-in curve_type attribute's value for Bezier curves
+# Where along each Bezier segment its posed handles are fitted to the posed shape.
+FIT_PARAMETERS = (0.25, 0.5, 0.75)
+# A joint whose handles are in line within this many radians at rest stays smooth when posed
+# (a joint drawn smooth is off by rounding; a corner by degrees).
+SMOOTH_JOINT = math.radians(0.5)
 KEPT_INPUTS = (CAGE_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT)
 
 
@@ -449,12 +456,18 @@ def _free(b, selection, side):
 
 
 def _set_bezier_handles(b, cage, curve, selection, left, right, point):
-    """The free Bezier handles of the moved ``curve`` mapped from where they were (``left`` and
-    ``right``, captured before the points moved), both by the map of their control point's
-    triangle (``point``, its place then): an affine map keeps a smooth joint's two handles in
-    line, where each handle's own nearest triangle turned them apart (a kink of 7 degrees in a
-    circle dragged by 0.6 of its radius)."""
+    """The free Bezier handles of the moved ``curve``, from where they and their points were
+    (``left``, ``right`` and ``point``, captured before the points moved).
+
+    A curve's handles are fitted so that each segment passes where the shape carries the points
+    it passed at rest (:func:`_fitted_handles`; mapped with their points, the middle of a
+    two-point curve never moved, QA), and a joint smooth at rest stays smooth
+    (:func:`_smooth_joints`). A drawing's (Set Curve Handle Positions leaves grease pencil alone,
+    and Sample Index reads no drawing's points) are mapped by their point's triangle, whose
+    affine map keeps a smooth joint's handles in line."""
     given = drawing = curve
+    curve, fitted, on_segment = _fitted_handles(b, cage, curve, left, right, point)
+    fitted = _smooth_joints(b, fitted, on_segment, left, right, point)
     # Only Bezier strokes have handles: a poly stroke's points (nearly every drawing's) are not
     # mapped twice more (review: twice the evaluation time of a 10,720-point drawing).
     curve_type = b.node("GeometryNodeInputNamedAttribute", {"Name": "curve_type"}, data_type="INT").outputs[0]
@@ -463,7 +476,7 @@ def _set_bezier_handles(b, cage, curve, selection, left, right, point):
     for side, position in (("LEFT", left), ("RIGHT", right)):
         mapped, free = cage.mapped(position, about=point), _free(b, selection, side)
         curve = b.node("GeometryNodeSetCurveHandlePositions",
-                       {"Curve": curve, "Selection": free, "Position": mapped}, mode=side).outputs[0]
+                       {"Curve": curve, "Selection": free, "Position": fitted[side]}, mode=side).outputs[0]
         # Set Curve Handle Positions leaves grease pencil alone (Blender 4.5-5.2): a drawing's
         # Bezier strokes kept their handles' rest directions, turned parts bent (QA). Their
         # handles are written as the attributes they are, on drawings alone (a mesh would get
@@ -478,6 +491,85 @@ def _set_bezier_handles(b, cage, curve, selection, left, right, point):
                           operation="GREATER_THAN").outputs[0]
     return b.node("GeometryNodeSwitch", {"Switch": has_drawings, "False": curve, "True": drawing},
                   input_type="GEOMETRY").outputs[0]
+
+
+def _fitted_handles(b, cage, curve, left, right, point):
+    """Each Bezier segment's handles fitted in least squares
+    (:func:`~solver.rigging.outline.bezier_handle_fit`) to where the cage carries its rest points
+    at ``FIT_PARAMETERS``, its moved ends given: ``curve`` with the fits captured, the handles
+    and whether each has a segment (two {"LEFT": field, "RIGHT": field}). An open spline's outer
+    handles, with no segment, are mapped by their point's triangle. Each segment is fitted once,
+    at its first point, which keeps its second point's handle for it."""
+    bernstein, weights = bezier_handle_fit(FIT_PARAMETERS)
+    index = b.node("GeometryNodeInputIndex").outputs[0]
+    moved = b.node("GeometryNodeInputPosition").outputs[0]
+
+    def at(geometry, field, point_index):
+        return b.node("GeometryNodeSampleIndex", {"Geometry": geometry, "Value": field, "Index": point_index},
+                      data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
+
+    def weighted_sum(vectors, factors):
+        terms = [b.node("ShaderNodeVectorMath", {0: v, 3: float(f)}, operation="SCALE").outputs[0]
+                 for v, f in zip(vectors, factors)]
+        total = terms[0]
+        for term in terms[1:]:
+            total = b.math("ADD", total, term)
+        return total
+
+    after = b.node("GeometryNodeOffsetPointInCurve", {"Point Index": index, "Offset": 1})
+    before = b.node("GeometryNodeOffsetPointInCurve", {"Point Index": index, "Offset": -1})
+    following = after.outputs["Point Index"]
+    rest = (point, right, at(curve, left, following), at(curve, point, following))
+    ends = (moved, at(curve, moved, following))
+    residuals = [b.math("SUBTRACT", cage.mapped(weighted_sum(rest, row)), weighted_sum(ends, row[[0, 3]]))
+                 for row in bernstein]
+    captured = b.node("GeometryNodeCaptureAttribute", {"Geometry": curve}, domain="POINT")
+    captured.capture_items.new("VECTOR", "Next Left")
+    b.group.links.new(weighted_sum(residuals, weights[:, 1]), captured.inputs["Next Left"])
+    curve = captured.outputs[0]
+    fits = {"RIGHT": weighted_sum(residuals, weights[:, 0]),
+            "LEFT": at(curve, captured.outputs["Next Left"], before.outputs["Point Index"])}
+    on_segment = {"RIGHT": after.outputs["Is Valid Offset"], "LEFT": before.outputs["Is Valid Offset"]}
+    fitted = {side: b.node("GeometryNodeSwitch", {"Switch": on_segment[side], "True": fits[side],
+                                                  "False": cage.mapped(handle, about=point)},
+                           input_type="VECTOR").outputs[0]
+              for side, handle in (("LEFT", left), ("RIGHT", right))}
+    return curve, fitted, on_segment
+
+
+def _smooth_joints(b, handles, on_segment, left, right, point):
+    """The handles of :func:`_fitted_handles` put back in line where the rest handles (``left``,
+    ``right``, about ``point``) were, each at its own distance from the moved point: along the
+    line from the left handle to the right one, or at an open spline's end along its one fitted
+    handle (the outer one, mapped rigidly, halved the bend of a two-point curve)."""
+    def vector(operation, *inputs, output=0):
+        return b.node("ShaderNodeVectorMath", inputs, operation=operation).outputs[output]
+
+    into = vector("NORMALIZE", vector("SUBTRACT", point, left))
+    out_of = vector("NORMALIZE", vector("SUBTRACT", right, point))
+    # A zero-length handle's direction is zero: its joint is not smooth.
+    smooth = b.node("FunctionNodeCompare", {"A": vector("DOT_PRODUCT", into, out_of, output="Value"),
+                                            "B": math.cos(SMOOTH_JOINT)},
+                    data_type="FLOAT", operation="GREATER_THAN").outputs[0]
+    moved = b.node("GeometryNodeInputPosition").outputs[0]
+    between = vector("SUBTRACT", handles["RIGHT"], handles["LEFT"])
+    for side, outward in (("LEFT", vector("SUBTRACT", moved, handles["LEFT"])),
+                          ("RIGHT", vector("SUBTRACT", handles["RIGHT"], moved))):
+        other = "RIGHT" if side == "LEFT" else "LEFT"
+        # Only this side has a segment: the line is its handle's.
+        alone = b.node("FunctionNodeBooleanMath", [on_segment[side], on_segment[other]], operation="NIMPLY").outputs[0]
+        between = b.node("GeometryNodeSwitch", {"Switch": alone, "False": between, "True": outward},
+                         input_type="VECTOR").outputs[0]
+    along = vector("NORMALIZE", between)
+    kept = {}
+    for side, sign in (("LEFT", -1.0), ("RIGHT", 1.0)):
+        reach = vector("LENGTH", vector("SUBTRACT", handles[side], moved), output="Value")
+        signed = b.node("ShaderNodeMath", [reach, sign], operation="MULTIPLY").outputs[0]
+        offset = b.node("ShaderNodeVectorMath", {0: along, 3: signed}, operation="SCALE").outputs[0]
+        kept[side] = b.node("GeometryNodeSwitch", {"Switch": smooth, "False": handles[side],
+                                                   "True": vector("ADD", moved, offset)},
+                            input_type="VECTOR").outputs[0]
+    return kept
 
 
 def _map_points(b, cage, geometry, selection):

@@ -474,6 +474,26 @@ def test_an_aligned_handle_opposite_a_vector_one_stays_in_line(addon, vector_sid
     assert np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))) < 0.5
 
 
+def test_a_two_point_curve_bends_under_a_handle_between_its_points(addon):
+    """Add > Curve > Bezier, held at both ends and dragged in the middle: the curve bends with
+    the shape (its Bezier handles were mapped by their points' triangles, and the middle of the
+    curve did not move while the cage under it moved 0.6, QA). Its handles are fitted to where
+    the shape carries the curve's points."""
+    bpy.ops.curve.primitive_bezier_curve_add()
+    obj = bpy.context.active_object
+    rest = checks.evaluated_vertices(obj)
+    middle = rest[len(rest) // 2]
+    ends = checks.evaluated_curve_points(obj, handles=False)
+    _, _, handle = checks.bind_with_handles(obj, ends[0], ends[-1], middle)
+    handle.location.y += 0.4  # the curve lies at the origin, unturned: its space is the world's
+    bpy.context.view_layer.update()
+    assert obj.shapedeform.status == ""
+    posed = checks.evaluated_vertices(obj)
+    np.testing.assert_allclose(posed[[0, -1]], rest[[0, -1]], atol=0.02)
+    # A cubic held at its ends bends by less than a tent-shaped drag: the fit reaches 0.32.
+    assert posed[len(posed) // 2, 1] - middle[1] > 0.6 * 0.4
+
+
 def test_a_curve_converted_to_hair_curves_unbinds(addon, quiet):
     """Object > Convert > Curves keeps the pose but drops the rig's modifier, and the status
     says Unbind removes the rig; Unbind refused ("a hair curves object: Shape Deform rigs

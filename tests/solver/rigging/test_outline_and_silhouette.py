@@ -9,7 +9,7 @@ import shapely
 from scipy import ndimage
 
 from solver.rigging.handles import apply_affine
-from solver.rigging.outline import boundary_loops, refine_level, sample_bezier, sample_nurbs, with_area, wound_alike
+from solver.rigging.outline import boundary_loops, bezier_handle_fit, refine_level, sample_bezier, sample_nurbs, with_area, wound_alike
 from solver.rigging.silhouette import image_cutout, map_by_triangles, specks, stroke_silhouette
 from solver.shapes import shape_geometry
 
@@ -82,6 +82,16 @@ def test_bezier_sampling_hits_control_points_and_is_a_circle():
     np.testing.assert_allclose(np.linalg.norm(curve, axis=1), 1.0, atol=3e-4)
     open_curve = sample_bezier(points, points - k * tangent, points + k * tangent, cyclic=False, resolution=8)
     assert len(open_curve) == 25 and np.allclose(open_curve[-1], points[-1])
+
+
+@pytest.mark.parametrize("parameters", [(1 / 3, 2 / 3), (0.25, 0.5, 0.75), (0.1, 0.2, 0.6, 0.9)])
+def test_bezier_handle_fit_gives_a_segments_handles_back(parameters):
+    rng = np.random.default_rng(len(parameters))
+    ends_and_handles = rng.normal(size=(4, 2))
+    bernstein, weights = bezier_handle_fit(parameters)
+    along = bernstein @ ends_and_handles
+    rest = along - np.outer(bernstein[:, 0], ends_and_handles[0]) - np.outer(bernstein[:, 3], ends_and_handles[3])
+    np.testing.assert_allclose(weights.T @ rest, ends_and_handles[1:3], atol=1e-12)
 
 
 def test_nurbs_sampling_draws_the_weighted_circle():
