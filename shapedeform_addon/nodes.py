@@ -3,8 +3,9 @@
 
 The cage is a triangle mesh of the solver's graph, posed by the rig; its point attribute
 ``sd_rest`` holds each point's rest position. The group maps every point it receives (mesh
-vertices, curve control points and both Bezier handles, grease-pencil stroke points of every
-drawing) by the affine map of the nearest rest triangle: the map that takes that triangle's
+vertices, curve control points, grease-pencil stroke points of every drawing) by the affine map
+of the nearest rest triangle (a curve's Bezier handles are then fitted to the posed shape,
+:func:`_set_bezier_handles`): the map that takes that triangle's
 rest corners to its posed corners and keeps the distance from the plane. Inside the outline
 this is the barycentric interpolation of the posed cage; outside it, the nearest triangle's map
 carried on, so points off the cage (outside the outline, lifted by a shape key) move with the
@@ -27,7 +28,8 @@ cage, nearly all of them, are found instead by Sample UV Surface, whose reverse-
 cheaper lookup: the cage gets a UV map, its rest points in the plane scaled to the unit square,
 and each point samples the cage's displacement (posed minus rest) at its own UV, which is the
 same map (barycentric in the plane, heights kept). Only the points it misses (off the outline)
-and Bezier handles take the nearest-triangle search.
+and Bezier splines' points (for their handles: five searches a point) take the nearest-triangle
+search.
 
 Where islands of a mesh that is its own graph overlap in the plane (a cut-out puppet's arm over
 its body), a place alone cannot tell them apart. Bind gives such a mesh's vertices their island
@@ -87,9 +89,10 @@ REFINE_MOST = 6  # the most times Refine subdivides
 CURVE_TYPE_BEZIER = 2  # the built-in curve_type attribute's value for Bezier curves
 # Where along each Bezier segment its posed handles are fitted to the posed shape.
 FIT_PARAMETERS = (0.25, 0.5, 0.75)
-# A joint whose handles are in line within this many radians at rest stays smooth when posed
-# (a joint drawn smooth is off by rounding; a corner by degrees).
-SMOOTH_JOINT = math.radians(0.5)
+# A joint whose handles are in line within this many radians at rest stays smooth when posed:
+# Blender's Auto and Aligned handles are in line to rounding (about 1e-5 radians); a joint
+# straightened at rest moves its handle's tip by at most 1.7e-4 of its length.
+SMOOTH_JOINT = math.radians(0.01)
 KEPT_INPUTS = (CAGE_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT)
 
 
@@ -421,14 +424,15 @@ def _rigged_selection(b, rigged_name):
 
 def _map_bezier_handles(b, cage, geometry, selection):
     """Bezier handles set FREE, so Blender does not derive them again from the moved control
-    points, and where they and their points were captured: (curve, left, right, point). Vector handles stay vector:
-    Blender keeps their segments straight between the moved points.
+    points, and where they and their points were captured: (curve, left, right, point). Vector handles stay vector
+    (Blender keeps their segments straight between the moved points), and an Aligned handle
+    opposite one stays Aligned (Blender lines it up with it).
 
     Set Position drags a FREE handle along with its control point, so the handles are mapped
     from where they were after the points move (:func:`_set_bezier_handles`); mapped before,
     each moved by its own map and again by its point's (a circle dragged by 0.25 strayed 0.19
-    from the drag). Only their places are captured here, a copy: mapping them is a search per
-    point that Set Curve Handle Positions runs on Bezier curves alone."""
+    from the drag). Only their places are captured here, a copy: posing them takes searches
+    that only geometry with Bezier splines runs."""
     handles = b.node("GeometryNodeInputCurveHandlePositions")
     curve = geometry
     for side in ("LEFT", "RIGHT"):
@@ -461,30 +465,35 @@ def _set_bezier_handles(b, cage, curve, selection, left, right, point):
 
     A curve's handles are fitted so that each segment passes where the shape carries the points
     it passed at rest (:func:`_fitted_handles`; mapped with their points, the middle of a
-    two-point curve never moved, QA), and a joint smooth at rest stays smooth
-    (:func:`_smooth_joints`). A drawing's (Set Curve Handle Positions leaves grease pencil alone,
-    and Sample Index reads no drawing's points) are mapped by their point's triangle, whose
-    affine map keeps a smooth joint's handles in line."""
+    two-point curve never moved, QA). A drawing's (Set Curve Handle Positions leaves grease
+    pencil alone, and Sample Index reads no drawing's points) are mapped by their point's
+    triangle, whose affine map keeps a smooth joint's handles in line."""
     given = drawing = curve
-    curve, fitted, on_segment = _fitted_handles(b, cage, curve, left, right, point)
-    fitted = _smooth_joints(b, fitted, on_segment, left, right, point)
     # Only Bezier strokes have handles: a poly stroke's points (nearly every drawing's) are not
     # mapped twice more (review: twice the evaluation time of a 10,720-point drawing).
     curve_type = b.node("GeometryNodeInputNamedAttribute", {"Name": "curve_type"}, data_type="INT").outputs[0]
     bezier = b.node("FunctionNodeCompare", {"A": curve_type, "B": CURVE_TYPE_BEZIER}, data_type="INT",
                     operation="EQUAL").outputs[0]
+    curve, fitted = _fitted_handles(b, cage, curve, left, right, point)
     for side, position in (("LEFT", left), ("RIGHT", right)):
-        mapped, free = cage.mapped(position, about=point), _free(b, selection, side)
+        free = _free(b, selection, side)
         curve = b.node("GeometryNodeSetCurveHandlePositions",
-                       {"Curve": curve, "Selection": free, "Position": fitted[side]}, mode=side).outputs[0]
+                       {"Curve": curve, "Selection": free, "Position": fitted[side.title()]}, mode=side).outputs[0]
         # Set Curve Handle Positions leaves grease pencil alone (Blender 4.5-5.2): a drawing's
         # Bezier strokes kept their handles' rest directions, turned parts bent (QA). Their
         # handles are written as the attributes they are, on drawings alone (a mesh would get
         # attributes of those names).
         drawing = b.node("GeometryNodeStoreNamedAttribute",
-                         {"Geometry": drawing, "Name": f"handle_{side.lower()}", "Value": mapped,
+                         {"Geometry": drawing, "Name": f"handle_{side.lower()}",
+                          "Value": cage.mapped(position, about=point),
                           "Selection": b.node("FunctionNodeBooleanMath", [free, bezier], operation="AND").outputs[0]},
                          data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
+    # The fit's captures run on every point of the geometry, a mesh's vertices (a text, a filled
+    # curve) and poly splines' points too: only geometry with Bezier splines takes that branch.
+    has_bezier = b.node("GeometryNodeAttributeStatistic", {"Geometry": given, "Attribute": bezier},
+                        data_type="FLOAT", domain="CURVE").outputs["Max"]
+    curve = b.node("GeometryNodeSwitch", {"Switch": has_bezier, "False": given, "True": curve},
+                   input_type="GEOMETRY").outputs[0]
     layers = b.node("GeometryNodeAttributeDomainSize", {"Geometry": given},
                     component="GREASEPENCIL").outputs["Layer Count"]
     has_drawings = b.node("FunctionNodeCompare", {"A": layers, "B": 0}, data_type="INT",
@@ -493,19 +502,36 @@ def _set_bezier_handles(b, cage, curve, selection, left, right, point):
                   input_type="GEOMETRY").outputs[0]
 
 
+def _capture(b, geometry, fields):
+    """``geometry`` with ``fields`` ({name: vector field}) captured on its points: the geometry
+    and {name: captured field}. A field read by several nodes is otherwise evaluated by each."""
+    node = b.node("GeometryNodeCaptureAttribute", {"Geometry": geometry}, domain="POINT")
+    for name, field in fields.items():
+        node.capture_items.new("VECTOR", name)
+        # By name: Blender 5.2 added a Selection input before the captured items.
+        b.group.links.new(field, node.inputs[name])
+    return node.outputs[0], {name: node.outputs[name] for name in fields}
+
+
 def _fitted_handles(b, cage, curve, left, right, point):
-    """Each Bezier segment's handles fitted in least squares
+    """``curve`` and its posed handles ({"LEFT": field, "RIGHT": field}, captured on it).
+
+    Each Bezier segment's two handles are fitted in least squares
     (:func:`~solver.rigging.outline.bezier_handle_fit`) to where the cage carries its rest points
-    at ``FIT_PARAMETERS``, its moved ends given: ``curve`` with the fits captured, the handles
-    and whether each has a segment (two {"LEFT": field, "RIGHT": field}). An open spline's outer
-    handles, with no segment, are mapped by their point's triangle. Each segment is fitted once,
-    at its first point, which keeps its second point's handle for it."""
+    at ``FIT_PARAMETERS``, its moved ends given; the fit is affine, so it runs about the
+    segment's first point, which keeps its rounding that of a handle's offset. Each segment is
+    fitted once, at its first point, which keeps its second point's handle for it. An open
+    spline's outer handles, with no segment, are mapped by their point's triangle. Joints smooth
+    at rest are then put back in line (:func:`_smooth_joints`)."""
     bernstein, weights = bezier_handle_fit(FIT_PARAMETERS)
     index = b.node("GeometryNodeInputIndex").outputs[0]
     moved = b.node("GeometryNodeInputPosition").outputs[0]
+    after = b.node("GeometryNodeOffsetPointInCurve", {"Point Index": index, "Offset": 1})
+    before = b.node("GeometryNodeOffsetPointInCurve", {"Point Index": index, "Offset": -1})
 
-    def at(geometry, field, point_index):
-        return b.node("GeometryNodeSampleIndex", {"Geometry": geometry, "Value": field, "Index": point_index},
+    def at(geometry, field, offset):
+        return b.node("GeometryNodeSampleIndex", {"Geometry": geometry, "Value": field,
+                                                  "Index": offset.outputs["Point Index"]},
                       data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
 
     def weighted_sum(vectors, factors):
@@ -516,59 +542,69 @@ def _fitted_handles(b, cage, curve, left, right, point):
             total = b.math("ADD", total, term)
         return total
 
-    after = b.node("GeometryNodeOffsetPointInCurve", {"Point Index": index, "Offset": 1})
-    before = b.node("GeometryNodeOffsetPointInCurve", {"Point Index": index, "Offset": -1})
-    following = after.outputs["Point Index"]
-    rest = (point, right, at(curve, left, following), at(curve, point, following))
-    ends = (moved, at(curve, moved, following))
-    residuals = [b.math("SUBTRACT", cage.mapped(weighted_sum(rest, row)), weighted_sum(ends, row[[0, 3]]))
-                 for row in bernstein]
-    captured = b.node("GeometryNodeCaptureAttribute", {"Geometry": curve}, domain="POINT")
-    captured.capture_items.new("VECTOR", "Next Left")
-    b.group.links.new(weighted_sum(residuals, weights[:, 1]), captured.inputs["Next Left"])
-    curve = captured.outputs[0]
-    fits = {"RIGHT": weighted_sum(residuals, weights[:, 0]),
-            "LEFT": at(curve, captured.outputs["Next Left"], before.outputs["Point Index"])}
+    # Offsets from the segment's first point, rest and moved.
+    rest = [b.math("SUBTRACT", field, point) for field in (right, at(curve, left, after), at(curve, point, after))]
+    reach = b.math("SUBTRACT", at(curve, moved, after), moved)
+    residuals = []
+    for row in bernstein:
+        along = b.math("ADD", point, weighted_sum(rest, row[1:]))
+        residuals.append(b.math("SUBTRACT", b.math("SUBTRACT", cage.mapped(along), moved),
+                                weighted_sum([reach], row[3:])))
+    curve, fits = _capture(b, curve, {"Right": b.math("ADD", moved, weighted_sum(residuals, weights[:, 0])),
+                                      "Next Left": b.math("ADD", moved, weighted_sum(residuals, weights[:, 1]))})
+    fitted = {"RIGHT": fits["Right"], "LEFT": at(curve, fits["Next Left"], before)}
     on_segment = {"RIGHT": after.outputs["Is Valid Offset"], "LEFT": before.outputs["Is Valid Offset"]}
-    fitted = {side: b.node("GeometryNodeSwitch", {"Switch": on_segment[side], "True": fits[side],
-                                                  "False": cage.mapped(handle, about=point)},
-                           input_type="VECTOR").outputs[0]
-              for side, handle in (("LEFT", left), ("RIGHT", right))}
-    return curve, fitted, on_segment
+    for side, handle in (("LEFT", left), ("RIGHT", right)):
+        fitted[side] = b.node("GeometryNodeSwitch", {"Switch": on_segment[side], "True": fitted[side],
+                                                     "False": cage.mapped(handle, about=point)},
+                              input_type="VECTOR").outputs[0]
+    neighbours = {"LEFT": b.math("SUBTRACT", moved, at(curve, moved, before)),
+                  "RIGHT": b.math("SUBTRACT", at(curve, moved, after), moved)}
+    return _capture(b, curve, _smooth_joints(b, fitted, on_segment, neighbours, left, right, point))
 
 
-def _smooth_joints(b, handles, on_segment, left, right, point):
-    """The handles of :func:`_fitted_handles` put back in line where the rest handles (``left``,
-    ``right``, about ``point``) were, each at its own distance from the moved point: along the
-    line from the left handle to the right one, or at an open spline's end along its one fitted
-    handle (the outer one, mapped rigidly, halved the bend of a two-point curve)."""
+def _smooth_joints(b, handles, on_segment, neighbours, left, right, point):
+    """``handles`` put back in line where the rest handles (``left``, ``right``, about ``point``)
+    were in line, each at its own distance from the moved point: {"Left": field, "Right": field}.
+
+    The line runs from the left handle to the right one; along a Vector handle's segment
+    (``neighbours``: the moved point from the one before, the one after from it), as Blender
+    derives that handle; or at an open spline's end along its one fitted handle (the outer one,
+    mapped rigidly, halved the bend of a two-point curve)."""
     def vector(operation, *inputs, output=0):
         return b.node("ShaderNodeVectorMath", inputs, operation=operation).outputs[output]
 
+    def either(switch, false, true):
+        return b.node("GeometryNodeSwitch", {"Switch": switch, "False": false, "True": true},
+                      input_type="VECTOR").outputs[0]
+
     into = vector("NORMALIZE", vector("SUBTRACT", point, left))
     out_of = vector("NORMALIZE", vector("SUBTRACT", right, point))
-    # A zero-length handle's direction is zero: its joint is not smooth.
-    smooth = b.node("FunctionNodeCompare", {"A": vector("DOT_PRODUCT", into, out_of, output="Value"),
-                                            "B": math.cos(SMOOTH_JOINT)},
-                    data_type="FLOAT", operation="GREATER_THAN").outputs[0]
+    # The sine of the turn, not its cosine, which float32 rounds to 1 below 0.02 degrees; a
+    # zero-length handle's direction is zero, so its joint is not smooth.
+    forward = b.node("FunctionNodeCompare", {"A": vector("DOT_PRODUCT", into, out_of, output="Value"), "B": 0.5},
+                     data_type="FLOAT", operation="GREATER_THAN").outputs[0]
+    turn = vector("LENGTH", vector("CROSS_PRODUCT", into, out_of), output="Value")
+    straight = b.node("FunctionNodeCompare", {"A": turn, "B": math.sin(SMOOTH_JOINT)},
+                      data_type="FLOAT", operation="LESS_THAN").outputs[0]
+    smooth = b.node("FunctionNodeBooleanMath", [forward, straight], operation="AND").outputs[0]
     moved = b.node("GeometryNodeInputPosition").outputs[0]
-    between = vector("SUBTRACT", handles["RIGHT"], handles["LEFT"])
-    for side, outward in (("LEFT", vector("SUBTRACT", moved, handles["LEFT"])),
-                          ("RIGHT", vector("SUBTRACT", handles["RIGHT"], moved))):
-        other = "RIGHT" if side == "LEFT" else "LEFT"
-        # Only this side has a segment: the line is its handle's.
+    line = vector("SUBTRACT", handles["RIGHT"], handles["LEFT"])
+    outward = {"LEFT": vector("SUBTRACT", moved, handles["LEFT"]), "RIGHT": vector("SUBTRACT", handles["RIGHT"], moved)}
+    for side, other in (("LEFT", "RIGHT"), ("RIGHT", "LEFT")):
         alone = b.node("FunctionNodeBooleanMath", [on_segment[side], on_segment[other]], operation="NIMPLY").outputs[0]
-        between = b.node("GeometryNodeSwitch", {"Switch": alone, "False": between, "True": outward},
-                         input_type="VECTOR").outputs[0]
-    along = vector("NORMALIZE", between)
+        line = either(alone, line, outward[side])
+    for side in ("LEFT", "RIGHT"):
+        vector_side = b.node("GeometryNodeCurveHandleTypeSelection", handle_type="VECTOR", mode={side}).outputs[0]
+        line = either(b.node("FunctionNodeBooleanMath", [vector_side, on_segment[side]], operation="AND").outputs[0],
+                      line, neighbours[side])
+    along = vector("NORMALIZE", line)
     kept = {}
     for side, sign in (("LEFT", -1.0), ("RIGHT", 1.0)):
-        reach = vector("LENGTH", vector("SUBTRACT", handles[side], moved), output="Value")
-        signed = b.node("ShaderNodeMath", [reach, sign], operation="MULTIPLY").outputs[0]
+        length = vector("LENGTH", outward[side], output="Value")
+        signed = b.node("ShaderNodeMath", [length, sign], operation="MULTIPLY").outputs[0]
         offset = b.node("ShaderNodeVectorMath", {0: along, 3: signed}, operation="SCALE").outputs[0]
-        kept[side] = b.node("GeometryNodeSwitch", {"Switch": smooth, "False": handles[side],
-                                                   "True": vector("ADD", moved, offset)},
-                            input_type="VECTOR").outputs[0]
+        kept[side.title()] = either(smooth, handles[side], vector("ADD", moved, offset))
     return kept
 
 

@@ -494,6 +494,57 @@ def test_a_two_point_curve_bends_under_a_handle_between_its_points(addon):
     assert posed[len(posed) // 2, 1] - middle[1] > 0.6 * 0.4
 
 
+def test_a_free_handle_in_line_with_a_vector_one_stays_in_line(addon):
+    """A straight run into an arc: a Free handle in line with the Vector handle before it. Posed,
+    the joint stays smooth along the line Blender derives the Vector handle on (review: lined
+    up with a fitted handle that Blender replaces, it kinked)."""
+    bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)
+    obj = bpy.context.active_object
+    joint = obj.data.splines[0].bezier_points[1]
+    joint.handle_left_type = joint.handle_right_type = "FREE"
+    joint.handle_left_type = "VECTOR"
+    bpy.context.view_layer.update()
+    joint.handle_right = joint.co + (joint.co - joint.handle_left) * 1.5  # in line, longer
+    _, right = checks.bind_with_handles(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0])
+    right.location.y += 0.8
+    bpy.context.view_layer.update()
+    points, left, after = checks.evaluated_curve_points(obj).reshape(3, -1, 3)
+    incoming, outgoing = points[1] - left[1], after[1] - points[1]
+    cosine = incoming @ outgoing / np.linalg.norm(incoming) / np.linalg.norm(outgoing)
+    assert np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))) < 0.5
+
+
+def test_a_curve_of_many_kinds_of_spline_is_its_rest_shape_at_rest(addon):
+    """Two open Bezier splines, a closed one with a slight Free kink (0.3 degrees), a poly and a
+    NURBS spline in one curve: bound, with handles not moved, the curve Blender draws is the one
+    it drew before (the fitted handles and straightened joints move nothing at rest)."""
+    obj = poly_curve("Kinds", [(np.array([[3.0, 0.0], [4.0, 1.0], [3.5, 2.0]]), False)])
+    curve = obj.data
+    for offset, cyclic in ((0.0, False), (1.5, False), (-3.0, True)):
+        spline = curve.splines.new("BEZIER")
+        spline.bezier_points.add(3)
+        for i, point in enumerate(spline.bezier_points):
+            angle = i * np.pi / 2
+            point.co = (offset + np.cos(angle), np.sin(angle), 0.0)
+            point.handle_left_type = point.handle_right_type = "AUTO"
+        spline.use_cyclic_u = cyclic
+    kinked = curve.splines[-1].bezier_points[2]
+    kinked.handle_left_type = kinked.handle_right_type = "FREE"
+    turn = np.radians(0.3)
+    offset = np.array(kinked.handle_right - kinked.co)
+    kinked.handle_right = np.array(kinked.co) + [offset[0] * np.cos(turn) - offset[1] * np.sin(turn),
+                                                 offset[0] * np.sin(turn) + offset[1] * np.cos(turn), 0.0]
+    nurbs = curve.splines.new("NURBS")
+    nurbs.points.add(4)
+    nurbs.points.foreach_set("co", np.array([[0, -3, 0, 1], [1, -4, 0, 1], [2, -3, 0, 1], [3, -4, 0, 1],
+                                             [4, -3, 0, 1]], np.float32).ravel())
+    nurbs.use_endpoint_u = True
+    bpy.context.view_layer.update()
+    rest = checks.evaluated_vertices(obj)
+    checks.bind_with_handles(obj, [-4.0, 0.0, 0.0], [4.0, 1.0, 0.0])
+    np.testing.assert_allclose(checks.evaluated_vertices(obj), rest, atol=1e-5)
+
+
 def test_a_curve_converted_to_hair_curves_unbinds(addon, quiet):
     """Object > Convert > Curves keeps the pose but drops the rig's modifier, and the status
     says Unbind removes the rig; Unbind refused ("a hair curves object: Shape Deform rigs
