@@ -464,10 +464,11 @@ def _set_bezier_handles(b, cage, curve, selection, left, right, point):
     (``left``, ``right`` and ``point``, captured before the points moved).
 
     A curve's handles are fitted so that each segment passes where the shape carries the points
-    it passed at rest (:func:`_fitted_handles`; mapped with their points, the middle of a
-    two-point curve never moved, QA). A drawing's (Set Curve Handle Positions leaves grease
-    pencil alone, and Sample Index reads no drawing's points) are mapped by their point's
-    triangle, whose affine map keeps a smooth joint's handles in line."""
+    it passed at rest, or kept in line at smooth joints (:func:`_fitted_handles`; mapped with
+    their points, the middle of a two-point curve never moved, QA). A drawing's (Set Curve
+    Handle Positions leaves grease pencil alone, and Sample Index reads no drawing's points)
+    are mapped by their point's triangle, whose affine map keeps a smooth joint's handles in
+    line."""
     given = drawing = curve
     # Only Bezier strokes have handles: a poly stroke's points (nearly every drawing's) are not
     # mapped twice more (review: twice the evaluation time of a 10,720-point drawing).
@@ -514,25 +515,31 @@ def _capture(b, geometry, fields):
 
 
 def _fitted_handles(b, cage, curve, left, right, point):
-    """``curve`` and its posed handles ({"LEFT": field, "RIGHT": field}, captured on it).
+    """``curve`` and its posed handles ({"Left": field, "Right": field}, captured on it).
 
-    Each Bezier segment's two handles are fitted in least squares
-    (:func:`~solver.rigging.outline.bezier_handle_fit`) to where the cage carries its rest points
-    at ``FIT_PARAMETERS``, its moved ends given; the fit is affine, so it runs about the
-    segment's first point, which keeps its rounding that of a handle's offset. Each segment is
-    fitted once, at its first point, which keeps its second point's handle for it. An open
-    spline's outer handles, with no segment, are mapped by their point's triangle. Joints smooth
-    at rest are then put back in line (:func:`_smooth_joints`)."""
-    bernstein, weights = bezier_handle_fit(FIT_PARAMETERS)
+    A smooth joint between two segments takes its handles by its point's triangle (that map is
+    affine, so they stay in line; the fit's two handles turned onto one line posed Blender's
+    Bezier circle 0.195 from the posed shape against 0.114 so, QA), and Blender derives Vector
+    handles and an Aligned one opposite a Vector one: those are pinned. Every other handle is
+    fitted in least squares (:func:`~solver.rigging.outline.bezier_handle_fit`) so its segment
+    passes where the cage carries the segment's rest points at ``FIT_PARAMETERS``, its moved ends
+    and any pinned handle given. The fit is affine, so it runs about the segment's first point
+    (its rounding that of a handle's offset); each segment is fitted once, at its first point,
+    which keeps its second point's handle for it. An open spline's outer handles, with no
+    segment, are mapped by their point's triangle, and then lined up with the fitted one where
+    the joint is smooth (:func:`_smooth_joints`; mapped with their points, the ends of a
+    two-point curve never bent it)."""
+    bernstein, weights, alone = bezier_handle_fit(FIT_PARAMETERS)
     index = b.node("GeometryNodeInputIndex").outputs[0]
     moved = b.node("GeometryNodeInputPosition").outputs[0]
     after = b.node("GeometryNodeOffsetPointInCurve", {"Point Index": index, "Offset": 1})
     before = b.node("GeometryNodeOffsetPointInCurve", {"Point Index": index, "Offset": -1})
+    on_segment = {"RIGHT": after.outputs["Is Valid Offset"], "LEFT": before.outputs["Is Valid Offset"]}
 
-    def at(geometry, field, offset):
+    def at(geometry, field, offset, data_type="FLOAT_VECTOR"):
         return b.node("GeometryNodeSampleIndex", {"Geometry": geometry, "Value": field,
                                                   "Index": offset.outputs["Point Index"]},
-                      data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
+                      data_type=data_type, domain="POINT").outputs[0]
 
     def weighted_sum(vectors, factors):
         terms = [b.node("ShaderNodeVectorMath", {0: v, 3: float(f)}, operation="SCALE").outputs[0]
@@ -542,7 +549,14 @@ def _fitted_handles(b, cage, curve, left, right, point):
             total = b.math("ADD", total, term)
         return total
 
-    # Offsets from the segment's first point, rest and moved.
+    def either(switch, false, true):
+        return b.node("GeometryNodeSwitch", {"Switch": switch, "False": false, "True": true},
+                      input_type="VECTOR").outputs[0]
+
+    joint = _Joints(b, left, right, point, on_segment)
+    curve, by_point = _capture(b, curve, {"LEFT": cage.mapped(left, about=point),
+                                          "RIGHT": cage.mapped(right, about=point)})
+    # The segment from this point to the next, as offsets from this point, rest and moved.
     rest = [b.math("SUBTRACT", field, point) for field in (right, at(curve, left, after), at(curve, point, after))]
     reach = b.math("SUBTRACT", at(curve, moved, after), moved)
     residuals = []
@@ -550,27 +564,72 @@ def _fitted_handles(b, cage, curve, left, right, point):
         along = b.math("ADD", point, weighted_sum(rest, row[1:]))
         residuals.append(b.math("SUBTRACT", b.math("SUBTRACT", cage.mapped(along), moved),
                                 weighted_sum([reach], row[3:])))
-    curve, fits = _capture(b, curve, {"Right": b.math("ADD", moved, weighted_sum(residuals, weights[:, 0])),
-                                      "Next Left": b.math("ADD", moved, weighted_sum(residuals, weights[:, 1]))})
-    fitted = {"RIGHT": fits["Right"], "LEFT": at(curve, fits["Next Left"], before)}
-    on_segment = {"RIGHT": after.outputs["Is Valid Offset"], "LEFT": before.outputs["Is Valid Offset"]}
-    for side, handle in (("LEFT", left), ("RIGHT", right)):
-        fitted[side] = b.node("GeometryNodeSwitch", {"Switch": on_segment[side], "True": fitted[side],
-                                                     "False": cage.mapped(handle, about=point)},
-                              input_type="VECTOR").outputs[0]
+    # A pinned handle as the segment has it: a Vector one a third of the way along the chord.
+    third = b.node("ShaderNodeVectorMath", {0: reach, 3: 1.0 / 3.0}, operation="SCALE").outputs[0]
+    given = {"RIGHT": either(joint.vectors["RIGHT"], b.math("SUBTRACT", by_point["RIGHT"], moved), third),
+             "LEFT": either(at(curve, joint.vectors["LEFT"], after, "BOOLEAN"),
+                            b.math("SUBTRACT", at(curve, by_point["LEFT"], after), moved),
+                            b.math("SUBTRACT", reach, third))}
+    def given_other(handle, column):
+        """The residuals less a pinned handle's part in them."""
+        return [b.math("SUBTRACT", r, weighted_sum([handle], [row[column]])) for r, row in zip(residuals, bernstein)]
+
+    first_pinned, second_pinned = joint.pinned["RIGHT"], at(curve, joint.pinned["LEFT"], after, "BOOLEAN")
+    first = either(second_pinned, weighted_sum(residuals, weights[:, 0]),
+                   weighted_sum(given_other(given["LEFT"], 2), alone[:, 0]))
+    second = either(first_pinned, weighted_sum(residuals, weights[:, 1]),
+                    weighted_sum(given_other(given["RIGHT"], 1), alone[:, 1]))
+    curve, fits = _capture(b, curve, {"Right": b.math("ADD", moved, first), "Next Left": b.math("ADD", moved, second)})
+    fitted = {"RIGHT": either(on_segment["RIGHT"], by_point["RIGHT"], fits["Right"]),
+              "LEFT": either(on_segment["LEFT"], by_point["LEFT"], at(curve, fits["Next Left"], before))}
     neighbours = {"LEFT": b.math("SUBTRACT", moved, at(curve, moved, before)),
                   "RIGHT": b.math("SUBTRACT", at(curve, moved, after), moved)}
-    return _capture(b, curve, _smooth_joints(b, fitted, on_segment, neighbours, left, right, point))
+    return _capture(b, curve, _smooth_joints(b, joint, fitted, by_point, on_segment, neighbours))
 
 
-def _smooth_joints(b, handles, on_segment, neighbours, left, right, point):
-    """``handles`` put back in line where the rest handles (``left``, ``right``, about ``point``)
-    were in line, each at its own distance from the moved point: {"Left": field, "Right": field}.
+class _Joints:
+    """What kind of joint each curve point is, from its rest handles (``left``, ``right``, about
+    ``point``): ``smooth`` (in line), ``vectors`` and ``pinned`` ({side: bool field}: a handle
+    the fit leaves alone, see :func:`_fitted_handles`), and ``interior`` (between two segments,
+    no Vector handle)."""
 
-    The line runs from the left handle to the right one; along a Vector handle's segment
-    (``neighbours``: the moved point from the one before, the one after from it), as Blender
-    derives that handle; or at an open spline's end along its one fitted handle (the outer one,
-    mapped rigidly, halved the bend of a two-point curve)."""
+    def __init__(self, b, left, right, point, on_segment):
+        def vector(operation, *inputs, output=0):
+            return b.node("ShaderNodeVectorMath", inputs, operation=operation).outputs[output]
+
+        def logic(operation, *inputs):
+            return b.node("FunctionNodeBooleanMath", inputs, operation=operation).outputs[0]
+
+        into = vector("NORMALIZE", vector("SUBTRACT", point, left))
+        out_of = vector("NORMALIZE", vector("SUBTRACT", right, point))
+        # The sine of the turn, not its cosine, which float32 rounds to 1 below 0.02 degrees; a
+        # zero-length handle's direction is zero, so its joint is not smooth.
+        forward = b.node("FunctionNodeCompare", {"A": vector("DOT_PRODUCT", into, out_of, output="Value"), "B": 0.5},
+                         data_type="FLOAT", operation="GREATER_THAN").outputs[0]
+        turn = vector("LENGTH", vector("CROSS_PRODUCT", into, out_of), output="Value")
+        straight = b.node("FunctionNodeCompare", {"A": turn, "B": math.sin(SMOOTH_JOINT)},
+                          data_type="FLOAT", operation="LESS_THAN").outputs[0]
+        self.smooth = logic("AND", forward, straight)
+        self.vectors = {side: b.node("GeometryNodeCurveHandleTypeSelection", handle_type="VECTOR",
+                                     mode={side}).outputs[0] for side in ("LEFT", "RIGHT")}
+        self.interior = logic("AND", logic("AND", on_segment["LEFT"], on_segment["RIGHT"]),
+                              logic("NOR", self.vectors["LEFT"], self.vectors["RIGHT"]))
+        by_point = logic("AND", self.smooth, self.interior)
+        self.pinned = {}
+        for side, other in (("LEFT", "RIGHT"), ("RIGHT", "LEFT")):
+            aligned = b.node("GeometryNodeCurveHandleTypeSelection", handle_type="ALIGN", mode={side}).outputs[0]
+            derived = logic("OR", self.vectors[side], logic("AND", aligned, self.vectors[other]))
+            self.pinned[side] = logic("OR", by_point, derived)
+
+
+def _smooth_joints(b, joint, handles, by_point, on_segment, neighbours):
+    """The posed ``handles`` with joints smooth at rest kept smooth: {"Left": field, "Right": field}.
+
+    A smooth joint between two segments takes its handles ``by_point``. Elsewhere (an open
+    spline's end, beside a Vector handle) the line runs along the fitted handle, or along the
+    Vector handle's segment (``neighbours``: the moved point from the one before, the one after
+    from it) as Blender derives that handle, each handle where its fitted offset projects on
+    it (its length kept, a glyph's Free handle in line with a Vector one strayed 0.037)."""
     def vector(operation, *inputs, output=0):
         return b.node("ShaderNodeVectorMath", inputs, operation=operation).outputs[output]
 
@@ -578,16 +637,6 @@ def _smooth_joints(b, handles, on_segment, neighbours, left, right, point):
         return b.node("GeometryNodeSwitch", {"Switch": switch, "False": false, "True": true},
                       input_type="VECTOR").outputs[0]
 
-    into = vector("NORMALIZE", vector("SUBTRACT", point, left))
-    out_of = vector("NORMALIZE", vector("SUBTRACT", right, point))
-    # The sine of the turn, not its cosine, which float32 rounds to 1 below 0.02 degrees; a
-    # zero-length handle's direction is zero, so its joint is not smooth.
-    forward = b.node("FunctionNodeCompare", {"A": vector("DOT_PRODUCT", into, out_of, output="Value"), "B": 0.5},
-                     data_type="FLOAT", operation="GREATER_THAN").outputs[0]
-    turn = vector("LENGTH", vector("CROSS_PRODUCT", into, out_of), output="Value")
-    straight = b.node("FunctionNodeCompare", {"A": turn, "B": math.sin(SMOOTH_JOINT)},
-                      data_type="FLOAT", operation="LESS_THAN").outputs[0]
-    smooth = b.node("FunctionNodeBooleanMath", [forward, straight], operation="AND").outputs[0]
     moved = b.node("GeometryNodeInputPosition").outputs[0]
     line = vector("SUBTRACT", handles["RIGHT"], handles["LEFT"])
     outward = {"LEFT": vector("SUBTRACT", moved, handles["LEFT"]), "RIGHT": vector("SUBTRACT", handles["RIGHT"], moved)}
@@ -595,16 +644,18 @@ def _smooth_joints(b, handles, on_segment, neighbours, left, right, point):
         alone = b.node("FunctionNodeBooleanMath", [on_segment[side], on_segment[other]], operation="NIMPLY").outputs[0]
         line = either(alone, line, outward[side])
     for side in ("LEFT", "RIGHT"):
-        vector_side = b.node("GeometryNodeCurveHandleTypeSelection", handle_type="VECTOR", mode={side}).outputs[0]
-        line = either(b.node("FunctionNodeBooleanMath", [vector_side, on_segment[side]], operation="AND").outputs[0],
-                      line, neighbours[side])
+        beside = b.node("FunctionNodeBooleanMath", [joint.vectors[side], on_segment[side]], operation="AND").outputs[0]
+        line = either(beside, line, neighbours[side])
     along = vector("NORMALIZE", line)
     kept = {}
-    for side, sign in (("LEFT", -1.0), ("RIGHT", 1.0)):
-        length = vector("LENGTH", outward[side], output="Value")
-        signed = b.node("ShaderNodeMath", [length, sign], operation="MULTIPLY").outputs[0]
-        offset = b.node("ShaderNodeVectorMath", {0: along, 3: signed}, operation="SCALE").outputs[0]
-        kept[side.title()] = either(smooth, handles[side], vector("ADD", moved, offset))
+    for side, bound in (("LEFT", "MINIMUM"), ("RIGHT", "MAXIMUM")):
+        # The handle's offset projected on the line, the least-squares fit along it (kept on
+        # its side of the point).
+        reach = vector("DOT_PRODUCT", along, vector("SUBTRACT", handles[side], moved), output="Value")
+        reach = b.node("ShaderNodeMath", [reach, 0.0], operation=bound).outputs[0]
+        offset = b.node("ShaderNodeVectorMath", {0: along, 3: reach}, operation="SCALE").outputs[0]
+        lined_up = either(joint.interior, vector("ADD", moved, offset), by_point[side])
+        kept[side.title()] = either(joint.smooth, handles[side], lined_up)
     return kept
 
 

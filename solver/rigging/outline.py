@@ -170,12 +170,15 @@ def bezier_handle_fit(parameters):
         ``b0 .. b3`` at each parameter.
     weights : (j, 2) float64 ndarray
         ``w1`` and ``w2`` of each point.
+    alone : (j, 2) float64 ndarray
+        The same for one handle fitted with the other given: ``H1 = sum_j a1_j (r_j - b2(t_j) H2)``
+        and ``H2 = sum_j a2_j (r_j - b1(t_j) H1)``.
     """
     t = np.asarray(parameters, dtype=np.float64)
     s = 1.0 - t
     bernstein = np.column_stack([s ** 3, 3 * s * s * t, 3 * s * t * t, t ** 3])
     handles = bernstein[:, 1:3]
-    return bernstein, np.linalg.solve(handles.T @ handles, handles.T).T
+    return bernstein, np.linalg.solve(handles.T @ handles, handles.T).T, handles / (handles ** 2).sum(axis=0)
 
 
 def sample_nurbs(points, weights, order, cyclic, endpoint=False, bezier=False, resolution=12, per_span=True):

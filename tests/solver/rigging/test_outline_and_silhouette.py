@@ -89,10 +89,13 @@ def test_bezier_sampling_hits_control_points_and_is_a_circle():
 def test_bezier_handle_fit_gives_a_segments_handles_back(parameters):
     rng = np.random.default_rng(len(parameters))
     ends_and_handles = rng.normal(size=(4, 2))
-    bernstein, weights = bezier_handle_fit(parameters)
+    bernstein, weights, alone = bezier_handle_fit(parameters)
     along = bernstein @ ends_and_handles
     rest = along - np.outer(bernstein[:, 0], ends_and_handles[0]) - np.outer(bernstein[:, 3], ends_and_handles[3])
     np.testing.assert_allclose(weights.T @ rest, ends_and_handles[1:3], atol=1e-12)
+    first, second = ends_and_handles[1:3]
+    np.testing.assert_allclose(alone[:, 0] @ (rest - np.outer(bernstein[:, 2], second)), first, atol=1e-12)
+    np.testing.assert_allclose(alone[:, 1] @ (rest - np.outer(bernstein[:, 1], first)), second, atol=1e-12)
 
 
 def test_nurbs_sampling_draws_the_weighted_circle():

@@ -1,0 +1,136 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Curves posed: time from a handle move to the evaluated curve, for curves and what skips them.
+
+A curve's Bezier handles are fitted to the posed shape in the node group (five nearest-triangle
+searches a Bezier point); poly splines and meshes skip that branch. Each checkout (this one, and
+``--compare-with DIR``) is built and installed like a user in a Python process of its own (see
+``addon_speed.py``); each object is bound with two handles, and ``MOVES`` moves of one are timed
+(``location`` changed, ``view_layer.update()``, then the evaluated object read as a mesh). The
+table gives the median and 90th percentile over ``--rounds`` runs, the checkouts taking turns
+to go first::
+
+    .venv/bin/python benchmarks/curve_handles.py [--rounds 2] [--compare-with /tmp/before]
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from addon_speed import _install
+
+MOVES = 30
+OBJECTS = ("text as a curve (75 letters)", "poly curve (2,000 points)", "grid mesh (40,401 vertices)")
+
+
+def _text_curve():
+    import bpy
+
+    bpy.ops.object.text_add()
+    bpy.context.object.data.body = "Shape Deform rigs curves " * 3
+    bpy.ops.object.convert(target="CURVE")
+    obj = bpy.context.active_object
+    obj.data.fill_mode = "NONE"
+    return obj
+
+
+def _poly_curve():
+    import bpy
+
+    curve = bpy.data.curves.new("Poly", "CURVE")
+    curve.dimensions, curve.fill_mode = "2D", "NONE"
+    t = np.linspace(0.0, 2.0 * np.pi, 2000, endpoint=False)
+    spline = curve.splines.new("POLY")
+    spline.points.add(len(t) - 1)
+    co = np.column_stack([3.0 * np.cos(t), np.sin(t) * (1.0 + 0.2 * np.sin(9.0 * t)), 0.0 * t, 1.0 + 0.0 * t])
+    spline.points.foreach_set("co", co.astype(np.float32).ravel())
+    spline.use_cyclic_u = True
+    obj = bpy.data.objects.new("Poly", curve)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def _grid():
+    import bpy
+
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=200, y_subdivisions=200, size=4.0)
+    return bpy.context.active_object
+
+
+def worker(root, out):
+    import bpy
+
+    _install(root)
+    times = {}
+    for name, make in zip(OBJECTS, (_text_curve, _poly_curve, _grid)):
+        bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+        obj = make()
+        bpy.context.view_layer.objects.active = obj
+        bpy.ops.shapedeform.bind()
+        corners = np.array(obj.bound_box)
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        for x in (lo[0] + 0.1 * (hi[0] - lo[0]), hi[0] - 0.1 * (hi[0] - lo[0])):
+            bpy.ops.shapedeform.add_handle(location=(x, 0.5 * (lo[1] + hi[1]), 0.0))
+        handle = obj.shapedeform.handles[-1].object
+        times[name] = []
+        for k in range(MOVES):
+            start = time.perf_counter()
+            handle.location.y += 0.01 if k % 20 < 10 else -0.01
+            bpy.context.view_layer.update()
+            evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+            evaluated.to_mesh()
+            evaluated.to_mesh_clear()
+            times[name].append(time.perf_counter() - start)
+    with open(out, "w", encoding="utf-8") as fh:
+        json.dump(times, fh)
+
+
+def _run(root):
+    with tempfile.TemporaryDirectory(prefix="shapedeform-curves-") as tmp:
+        out = os.path.join(tmp, "times.json")
+        env = dict(os.environ, BLENDER_USER_RESOURCES=os.path.join(tmp, "user"))
+        proc = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", root, "--json", out],
+                              env=env, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise SystemExit(f"curves of {root} failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}")
+        with open(out, encoding="utf-8") as fh:
+            return json.load(fh)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--compare-with", metavar="DIR")
+    parser.add_argument("--worker", metavar="ROOT", help=argparse.SUPPRESS)
+    parser.add_argument("--json", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.worker:
+        worker(args.worker, args.json)
+        return 0
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    designs = {"this checkout": here}
+    if args.compare_with:
+        designs["--compare-with"] = os.path.abspath(args.compare_with)
+    times = {name: {} for name in designs}
+    order = list(designs.items())
+    for round_ in range(args.rounds):
+        for name, root in order if round_ % 2 == 0 else order[::-1]:
+            for measure, values in _run(root).items():
+                times[name].setdefault(measure, []).extend(values)
+    print(f"handle move -> evaluated, {MOVES} moves x {args.rounds} rounds")
+    print("| object | checkout | ms: median | 90th percentile |")
+    print("|---|---|---:|---:|")
+    for measure in OBJECTS:
+        for name in designs:
+            ms = 1000.0 * np.array(times[name][measure])
+            print(f"| {measure} | {name} | {np.median(ms):.1f} | {np.percentile(ms, 90):.1f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
