@@ -95,6 +95,33 @@ def _install(root):
     return sys.modules[MODULE].shapedeform_addon
 
 
+def run_worker(script, root, extra=()):
+    """``script --worker root --json OUT extra`` in a Python process of its own with user
+    resources of its own (a clean install of ``root``'s extension); the JSON it wrote."""
+    with tempfile.TemporaryDirectory(prefix="shapedeform-worker-") as tmp:
+        out = os.path.join(tmp, "times.json")
+        env = dict(os.environ, BLENDER_USER_RESOURCES=os.path.join(tmp, "user"))
+        proc = subprocess.run([sys.executable, os.path.abspath(script), "--worker", root, "--json", out, *extra],
+                              env=env, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise SystemExit(f"{os.path.basename(script)} on {root} failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}")
+        with open(out, encoding="utf-8") as fh:
+            return json.load(fh)
+
+
+def in_turns(designs, rounds, run):
+    """{design: {measure: [seconds]}}: ``run(root)`` of every design ({name: root}) ``rounds``
+    times, each first in every other round (the one run second was measured up to a fifth
+    faster when the same one always went first)."""
+    times = {name: {} for name in designs}
+    order = list(designs.items())
+    for round_ in range(rounds):
+        for name, root in order if round_ % 2 == 0 else order[::-1]:
+            for measure, values in run(root).items():
+                times[name].setdefault(measure, []).extend(values)
+    return times
+
+
 def _gp_drawing(points, strokes):
     """A grease-pencil object with ``points`` points in ``strokes`` wavy strokes (XY plane)."""
     import bpy

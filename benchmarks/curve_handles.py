@@ -15,14 +15,12 @@ to go first::
 import argparse
 import json
 import os
-import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
 
-from addon_speed import _install
+from addon_speed import _install, in_turns, run_worker
 
 MOVES = 30
 OBJECTS = ("text as a curve (75 letters)", "poly curve (2,000 points)", "grid mesh (40,401 vertices)")
@@ -90,18 +88,6 @@ def worker(root, out):
         json.dump(times, fh)
 
 
-def _run(root):
-    with tempfile.TemporaryDirectory(prefix="shapedeform-curves-") as tmp:
-        out = os.path.join(tmp, "times.json")
-        env = dict(os.environ, BLENDER_USER_RESOURCES=os.path.join(tmp, "user"))
-        proc = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", root, "--json", out],
-                              env=env, capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise SystemExit(f"curves of {root} failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}")
-        with open(out, encoding="utf-8") as fh:
-            return json.load(fh)
-
-
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=2)
@@ -116,12 +102,7 @@ def main(argv=None):
     designs = {"this checkout": here}
     if args.compare_with:
         designs["--compare-with"] = os.path.abspath(args.compare_with)
-    times = {name: {} for name in designs}
-    order = list(designs.items())
-    for round_ in range(args.rounds):
-        for name, root in order if round_ % 2 == 0 else order[::-1]:
-            for measure, values in _run(root).items():
-                times[name].setdefault(measure, []).extend(values)
+    times = in_turns(designs, args.rounds, lambda root: run_worker(__file__, root))
     print(f"handle move -> evaluated, {MOVES} moves x {args.rounds} rounds")
     print("| object | checkout | ms: median | 90th percentile |")
     print("|---|---|---:|---:|")

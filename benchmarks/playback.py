@@ -20,14 +20,12 @@ runs, the checkouts taking turns to go first::
 import argparse
 import json
 import os
-import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
 
-from addon_speed import _install, _monkey
+from addon_speed import _install, _monkey, in_turns, run_worker
 
 FRAMES = range(1, 101)
 MOVES = 40
@@ -87,20 +85,6 @@ def worker(root, rigs, animated, props, bake_frames, out):
         json.dump(times, fh)
 
 
-def _run(root, args):
-    with tempfile.TemporaryDirectory(prefix="shapedeform-playback-") as tmp:
-        out = os.path.join(tmp, "times.json")
-        env = dict(os.environ, BLENDER_USER_RESOURCES=os.path.join(tmp, "user"))
-        proc = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", root, "--json", out,
-                               "--rigs", str(args.rigs), "--animated", str(args.animated), "--props", str(args.props),
-                               "--bake-frames", str(args.bake_frames)],
-                              env=env, capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise SystemExit(f"playback of {root} failed:\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}")
-        with open(out, encoding="utf-8") as fh:
-            return json.load(fh)
-
-
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rigs", type=int, default=20)
@@ -119,14 +103,9 @@ def main(argv=None):
     designs = {"this checkout": here}
     if args.compare_with:
         designs["--compare-with"] = os.path.abspath(args.compare_with)
-    times = {name: {} for name in designs}
-    order = list(designs.items())
-    for round_ in range(args.rounds):
-        # Each checkout first in every other round: the one run second was measured up to a
-        # fifth faster when the same one always went first.
-        for name, root in order if round_ % 2 == 0 else order[::-1]:
-            for measure, values in _run(root, args).items():
-                times[name].setdefault(measure, []).extend(values)
+    extra = ["--rigs", str(args.rigs), "--animated", str(args.animated), "--props", str(args.props),
+             "--bake-frames", str(args.bake_frames)]
+    times = in_turns(designs, args.rounds, lambda root: run_worker(__file__, root, extra))
     baked = f", baked over {args.bake_frames} frames" if args.bake_frames else ""
     print(f"{args.rigs} monkeys, {args.animated} animated{baked}, {args.props} other objects; {len(FRAMES)} frames "
           f"and {MOVES} handle moves x {args.rounds} rounds")
