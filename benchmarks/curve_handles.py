@@ -1,8 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Curves posed: time from a handle move to the evaluated curve, for curves and what skips them.
+"""Curves posed: time from a handle move to the evaluated curve, for Bezier and poly curves and a mesh.
 
-A curve's Bezier handles are fitted to the posed shape in the node group (five nearest-triangle
-searches a Bezier point); poly splines and meshes skip that branch. Each checkout (this one, and
+Each checkout (this one, and
 ``--compare-with DIR``) is built and installed like a user in a Python process of its own (see
 ``addon_speed.py``); each object is bound with two handles, and ``MOVES`` moves of one are timed
 (``location`` changed, ``view_layer.update()``, then the evaluated object read as a mesh). The

@@ -3,9 +3,8 @@
 
 The cage is a triangle mesh of the solver's graph, posed by the rig; its point attribute
 ``sd_rest`` holds each point's rest position. The group maps every point it receives (mesh
-vertices, curve control points, grease-pencil stroke points of every drawing) by the affine map
-of the nearest rest triangle (a curve's Bezier handles are then fitted to the posed shape,
-:func:`_set_bezier_handles`): the map that takes that triangle's
+vertices, curve control points and both Bezier handles, grease-pencil stroke points of every
+drawing) by the affine map of the nearest rest triangle: the map that takes that triangle's
 rest corners to its posed corners and keeps the distance from the plane. Inside the outline
 this is the barycentric interpolation of the posed cage; outside it, the nearest triangle's map
 carried on, so points off the cage (outside the outline, lifted by a shape key) move with the
@@ -28,8 +27,7 @@ cage, nearly all of them, are found instead by Sample UV Surface, whose reverse-
 cheaper lookup: the cage gets a UV map, its rest points in the plane scaled to the unit square,
 and each point samples the cage's displacement (posed minus rest) at its own UV, which is the
 same map (barycentric in the plane, heights kept). Only the points it misses (off the outline)
-and Bezier splines' points (for their handles: five searches a point) take the nearest-triangle
-search.
+and Bezier handles take the nearest-triangle search.
 
 Where islands of a mesh that is its own graph overlap in the plane (a cut-out puppet's arm over
 its body), a place alone cannot tell them apart. Bind gives such a mesh's vertices their island
@@ -58,11 +56,9 @@ The group is built from Python (no asset file to keep in step) and rebuilt when 
 extension's group is found (``VERSION``); the modifiers that use it keep their inputs.
 """
 
-import math
-
 import bpy
 
-from ..solver.rigging.outline import REFINE_BUDGET, bezier_handle_fit
+from ..solver.rigging.outline import REFINE_BUDGET
 from . import compat
 
 GROUP_NAME = "Shape Deform"
@@ -87,12 +83,6 @@ LEGACY_OWNER_INPUT = "Owner"
 REFINE_INPUT, ORDER_INPUT = "Refine", "Stroke Order"
 REFINE_MOST = 6  # the most times Refine subdivides
 CURVE_TYPE_BEZIER = 2  # the built-in curve_type attribute's value for Bezier curves
-# Where along each Bezier segment its posed handles are fitted to the posed shape.
-FIT_PARAMETERS = (0.25, 0.5, 0.75)
-# A joint whose handles are in line within this many radians at rest stays smooth when posed:
-# Blender's Auto and Aligned handles are in line to rounding (about 1e-5 radians); a joint
-# straightened at rest moves its handle's tip by at most 1.7e-4 of its length.
-SMOOTH_JOINT = math.radians(0.01)
 KEPT_INPUTS = (CAGE_INPUT, RIGGED_INPUT, REFINE_INPUT, ORDER_INPUT)
 
 
@@ -424,15 +414,14 @@ def _rigged_selection(b, rigged_name):
 
 def _map_bezier_handles(b, cage, geometry, selection):
     """Bezier handles set FREE, so Blender does not derive them again from the moved control
-    points, and where they and their points were captured: (curve, left, right, point). Vector handles stay vector
-    (Blender keeps their segments straight between the moved points), and an Aligned handle
-    opposite one stays Aligned (Blender lines it up with it).
+    points, and where they and their points were captured: (curve, left, right, point). Vector handles stay vector:
+    Blender keeps their segments straight between the moved points.
 
     Set Position drags a FREE handle along with its control point, so the handles are mapped
     from where they were after the points move (:func:`_set_bezier_handles`); mapped before,
     each moved by its own map and again by its point's (a circle dragged by 0.25 strayed 0.19
-    from the drag). Only their places are captured here, a copy: posing them takes searches
-    that only geometry with Bezier splines runs."""
+    from the drag). Only their places are captured here, a copy: mapping them is a search per
+    point that Set Curve Handle Positions runs on Bezier curves alone."""
     handles = b.node("GeometryNodeInputCurveHandlePositions")
     curve = geometry
     for side in ("LEFT", "RIGHT"):
@@ -460,203 +449,35 @@ def _free(b, selection, side):
 
 
 def _set_bezier_handles(b, cage, curve, selection, left, right, point):
-    """The free Bezier handles of the moved ``curve``, from where they and their points were
-    (``left``, ``right`` and ``point``, captured before the points moved).
-
-    A curve's handles are fitted so that each segment passes where the shape carries the points
-    it passed at rest, or kept in line at smooth joints (:func:`_fitted_handles`; mapped with
-    their points, the middle of a two-point curve never moved, QA). A drawing's (Set Curve
-    Handle Positions leaves grease pencil alone, and Sample Index reads no drawing's points)
-    are mapped by their point's triangle, whose affine map keeps a smooth joint's handles in
-    line."""
+    """The free Bezier handles of the moved ``curve`` mapped from where they were (``left`` and
+    ``right``, captured before the points moved), both by the map of their control point's
+    triangle (``point``, its place then): an affine map keeps a smooth joint's two handles in
+    line, where each handle's own nearest triangle turned them apart (a kink of 7 degrees in a
+    circle dragged by 0.6 of its radius)."""
     given = drawing = curve
     # Only Bezier strokes have handles: a poly stroke's points (nearly every drawing's) are not
     # mapped twice more (review: twice the evaluation time of a 10,720-point drawing).
     curve_type = b.node("GeometryNodeInputNamedAttribute", {"Name": "curve_type"}, data_type="INT").outputs[0]
     bezier = b.node("FunctionNodeCompare", {"A": curve_type, "B": CURVE_TYPE_BEZIER}, data_type="INT",
                     operation="EQUAL").outputs[0]
-    curve, fitted = _fitted_handles(b, cage, curve, left, right, point)
     for side, position in (("LEFT", left), ("RIGHT", right)):
-        free = _free(b, selection, side)
+        mapped, free = cage.mapped(position, about=point), _free(b, selection, side)
         curve = b.node("GeometryNodeSetCurveHandlePositions",
-                       {"Curve": curve, "Selection": free, "Position": fitted[side.title()]}, mode=side).outputs[0]
+                       {"Curve": curve, "Selection": free, "Position": mapped}, mode=side).outputs[0]
         # Set Curve Handle Positions leaves grease pencil alone (Blender 4.5-5.2): a drawing's
         # Bezier strokes kept their handles' rest directions, turned parts bent (QA). Their
         # handles are written as the attributes they are, on drawings alone (a mesh would get
         # attributes of those names).
         drawing = b.node("GeometryNodeStoreNamedAttribute",
-                         {"Geometry": drawing, "Name": f"handle_{side.lower()}",
-                          "Value": cage.mapped(position, about=point),
+                         {"Geometry": drawing, "Name": f"handle_{side.lower()}", "Value": mapped,
                           "Selection": b.node("FunctionNodeBooleanMath", [free, bezier], operation="AND").outputs[0]},
                          data_type="FLOAT_VECTOR", domain="POINT").outputs[0]
-    # The fit's captures run on every point of the geometry, a mesh's vertices (a text, a filled
-    # curve) and poly splines' points too: only geometry with Bezier splines takes that branch.
-    has_bezier = b.node("GeometryNodeAttributeStatistic", {"Geometry": given, "Attribute": bezier},
-                        data_type="FLOAT", domain="CURVE").outputs["Max"]
-    curve = b.node("GeometryNodeSwitch", {"Switch": has_bezier, "False": given, "True": curve},
-                   input_type="GEOMETRY").outputs[0]
     layers = b.node("GeometryNodeAttributeDomainSize", {"Geometry": given},
                     component="GREASEPENCIL").outputs["Layer Count"]
     has_drawings = b.node("FunctionNodeCompare", {"A": layers, "B": 0}, data_type="INT",
                           operation="GREATER_THAN").outputs[0]
     return b.node("GeometryNodeSwitch", {"Switch": has_drawings, "False": curve, "True": drawing},
                   input_type="GEOMETRY").outputs[0]
-
-
-def _capture(b, geometry, fields):
-    """``geometry`` with ``fields`` ({name: vector field}) captured on its points: the geometry
-    and {name: captured field}. A field read by several nodes is otherwise evaluated by each."""
-    node = b.node("GeometryNodeCaptureAttribute", {"Geometry": geometry}, domain="POINT")
-    for name, field in fields.items():
-        node.capture_items.new("VECTOR", name)
-        # By name: Blender 5.2 added a Selection input before the captured items.
-        b.group.links.new(field, node.inputs[name])
-    return node.outputs[0], {name: node.outputs[name] for name in fields}
-
-
-def _fitted_handles(b, cage, curve, left, right, point):
-    """``curve`` and its posed handles ({"Left": field, "Right": field}, captured on it).
-
-    A smooth joint between two segments takes its handles by its point's triangle (that map is
-    affine, so they stay in line; the fit's two handles turned onto one line posed Blender's
-    Bezier circle 0.195 from the posed shape against 0.114 so, QA), and Blender derives Vector
-    handles and an Aligned one opposite a Vector one: those are pinned. Every other handle is
-    fitted in least squares (:func:`~solver.rigging.outline.bezier_handle_fit`) so its segment
-    passes where the cage carries the segment's rest points at ``FIT_PARAMETERS``, its moved ends
-    and any pinned handle given. The fit is affine, so it runs about the segment's first point
-    (its rounding that of a handle's offset); each segment is fitted once, at its first point,
-    which keeps its second point's handle for it. An open spline's outer handles, with no
-    segment, are mapped by their point's triangle, and then lined up with the fitted one where
-    the joint is smooth (:func:`_smooth_joints`; mapped with their points, the ends of a
-    two-point curve never bent it)."""
-    bernstein, weights, alone = bezier_handle_fit(FIT_PARAMETERS)
-    index = b.node("GeometryNodeInputIndex").outputs[0]
-    moved = b.node("GeometryNodeInputPosition").outputs[0]
-    after = b.node("GeometryNodeOffsetPointInCurve", {"Point Index": index, "Offset": 1})
-    before = b.node("GeometryNodeOffsetPointInCurve", {"Point Index": index, "Offset": -1})
-    on_segment = {"RIGHT": after.outputs["Is Valid Offset"], "LEFT": before.outputs["Is Valid Offset"]}
-
-    def at(geometry, field, offset, data_type="FLOAT_VECTOR"):
-        return b.node("GeometryNodeSampleIndex", {"Geometry": geometry, "Value": field,
-                                                  "Index": offset.outputs["Point Index"]},
-                      data_type=data_type, domain="POINT").outputs[0]
-
-    def weighted_sum(vectors, factors):
-        terms = [b.node("ShaderNodeVectorMath", {0: v, 3: float(f)}, operation="SCALE").outputs[0]
-                 for v, f in zip(vectors, factors)]
-        total = terms[0]
-        for term in terms[1:]:
-            total = b.math("ADD", total, term)
-        return total
-
-    def either(switch, false, true):
-        return b.node("GeometryNodeSwitch", {"Switch": switch, "False": false, "True": true},
-                      input_type="VECTOR").outputs[0]
-
-    joint = _Joints(b, left, right, point, on_segment)
-    curve, by_point = _capture(b, curve, {"LEFT": cage.mapped(left, about=point),
-                                          "RIGHT": cage.mapped(right, about=point)})
-    # The segment from this point to the next, as offsets from this point, rest and moved.
-    rest = [b.math("SUBTRACT", field, point) for field in (right, at(curve, left, after), at(curve, point, after))]
-    reach = b.math("SUBTRACT", at(curve, moved, after), moved)
-    residuals = []
-    for row in bernstein:
-        along = b.math("ADD", point, weighted_sum(rest, row[1:]))
-        residuals.append(b.math("SUBTRACT", b.math("SUBTRACT", cage.mapped(along), moved),
-                                weighted_sum([reach], row[3:])))
-    # A pinned handle as the segment has it: a Vector one a third of the way along the chord.
-    third = b.node("ShaderNodeVectorMath", {0: reach, 3: 1.0 / 3.0}, operation="SCALE").outputs[0]
-    given = {"RIGHT": either(joint.vectors["RIGHT"], b.math("SUBTRACT", by_point["RIGHT"], moved), third),
-             "LEFT": either(at(curve, joint.vectors["LEFT"], after, "BOOLEAN"),
-                            b.math("SUBTRACT", at(curve, by_point["LEFT"], after), moved),
-                            b.math("SUBTRACT", reach, third))}
-    def given_other(handle, column):
-        """The residuals less a pinned handle's part in them."""
-        return [b.math("SUBTRACT", r, weighted_sum([handle], [row[column]])) for r, row in zip(residuals, bernstein)]
-
-    first_pinned, second_pinned = joint.pinned["RIGHT"], at(curve, joint.pinned["LEFT"], after, "BOOLEAN")
-    first = either(second_pinned, weighted_sum(residuals, weights[:, 0]),
-                   weighted_sum(given_other(given["LEFT"], 2), alone[:, 0]))
-    second = either(first_pinned, weighted_sum(residuals, weights[:, 1]),
-                    weighted_sum(given_other(given["RIGHT"], 1), alone[:, 1]))
-    curve, fits = _capture(b, curve, {"Right": b.math("ADD", moved, first), "Next Left": b.math("ADD", moved, second)})
-    fitted = {"RIGHT": either(on_segment["RIGHT"], by_point["RIGHT"], fits["Right"]),
-              "LEFT": either(on_segment["LEFT"], by_point["LEFT"], at(curve, fits["Next Left"], before))}
-    neighbours = {"LEFT": b.math("SUBTRACT", moved, at(curve, moved, before)),
-                  "RIGHT": b.math("SUBTRACT", at(curve, moved, after), moved)}
-    return _capture(b, curve, _smooth_joints(b, joint, fitted, by_point, on_segment, neighbours))
-
-
-class _Joints:
-    """What kind of joint each curve point is, from its rest handles (``left``, ``right``, about
-    ``point``): ``smooth`` (in line), ``vectors`` and ``pinned`` ({side: bool field}: a handle
-    the fit leaves alone, see :func:`_fitted_handles`), and ``interior`` (between two segments,
-    no Vector handle)."""
-
-    def __init__(self, b, left, right, point, on_segment):
-        def vector(operation, *inputs, output=0):
-            return b.node("ShaderNodeVectorMath", inputs, operation=operation).outputs[output]
-
-        def logic(operation, *inputs):
-            return b.node("FunctionNodeBooleanMath", inputs, operation=operation).outputs[0]
-
-        into = vector("NORMALIZE", vector("SUBTRACT", point, left))
-        out_of = vector("NORMALIZE", vector("SUBTRACT", right, point))
-        # The sine of the turn, not its cosine, which float32 rounds to 1 below 0.02 degrees; a
-        # zero-length handle's direction is zero, so its joint is not smooth.
-        forward = b.node("FunctionNodeCompare", {"A": vector("DOT_PRODUCT", into, out_of, output="Value"), "B": 0.5},
-                         data_type="FLOAT", operation="GREATER_THAN").outputs[0]
-        turn = vector("LENGTH", vector("CROSS_PRODUCT", into, out_of), output="Value")
-        straight = b.node("FunctionNodeCompare", {"A": turn, "B": math.sin(SMOOTH_JOINT)},
-                          data_type="FLOAT", operation="LESS_THAN").outputs[0]
-        self.smooth = logic("AND", forward, straight)
-        self.vectors = {side: b.node("GeometryNodeCurveHandleTypeSelection", handle_type="VECTOR",
-                                     mode={side}).outputs[0] for side in ("LEFT", "RIGHT")}
-        self.interior = logic("AND", logic("AND", on_segment["LEFT"], on_segment["RIGHT"]),
-                              logic("NOR", self.vectors["LEFT"], self.vectors["RIGHT"]))
-        by_point = logic("AND", self.smooth, self.interior)
-        self.pinned = {}
-        for side, other in (("LEFT", "RIGHT"), ("RIGHT", "LEFT")):
-            aligned = b.node("GeometryNodeCurveHandleTypeSelection", handle_type="ALIGN", mode={side}).outputs[0]
-            derived = logic("OR", self.vectors[side], logic("AND", aligned, self.vectors[other]))
-            self.pinned[side] = logic("OR", by_point, derived)
-
-
-def _smooth_joints(b, joint, handles, by_point, on_segment, neighbours):
-    """The posed ``handles`` with joints smooth at rest kept smooth: {"Left": field, "Right": field}.
-
-    A smooth joint between two segments takes its handles ``by_point``. Elsewhere (an open
-    spline's end, beside a Vector handle) the line runs along the fitted handle, or along the
-    Vector handle's segment (``neighbours``: the moved point from the one before, the one after
-    from it) as Blender derives that handle, each handle where its fitted offset projects on
-    it (its length kept, a glyph's Free handle in line with a Vector one strayed 0.037)."""
-    def vector(operation, *inputs, output=0):
-        return b.node("ShaderNodeVectorMath", inputs, operation=operation).outputs[output]
-
-    def either(switch, false, true):
-        return b.node("GeometryNodeSwitch", {"Switch": switch, "False": false, "True": true},
-                      input_type="VECTOR").outputs[0]
-
-    moved = b.node("GeometryNodeInputPosition").outputs[0]
-    line = vector("SUBTRACT", handles["RIGHT"], handles["LEFT"])
-    outward = {"LEFT": vector("SUBTRACT", moved, handles["LEFT"]), "RIGHT": vector("SUBTRACT", handles["RIGHT"], moved)}
-    for side, other in (("LEFT", "RIGHT"), ("RIGHT", "LEFT")):
-        alone = b.node("FunctionNodeBooleanMath", [on_segment[side], on_segment[other]], operation="NIMPLY").outputs[0]
-        line = either(alone, line, outward[side])
-    for side in ("LEFT", "RIGHT"):
-        beside = b.node("FunctionNodeBooleanMath", [joint.vectors[side], on_segment[side]], operation="AND").outputs[0]
-        line = either(beside, line, neighbours[side])
-    along = vector("NORMALIZE", line)
-    kept = {}
-    for side, bound in (("LEFT", "MINIMUM"), ("RIGHT", "MAXIMUM")):
-        # The handle's offset projected on the line, the least-squares fit along it (kept on
-        # its side of the point).
-        reach = vector("DOT_PRODUCT", along, vector("SUBTRACT", handles[side], moved), output="Value")
-        reach = b.node("ShaderNodeMath", [reach, 0.0], operation=bound).outputs[0]
-        offset = b.node("ShaderNodeVectorMath", {0: along, 3: reach}, operation="SCALE").outputs[0]
-        lined_up = either(joint.interior, vector("ADD", moved, offset), by_point[side])
-        kept[side.title()] = either(joint.smooth, handles[side], lined_up)
-    return kept
 
 
 def _map_points(b, cage, geometry, selection):

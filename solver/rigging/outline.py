@@ -17,8 +17,7 @@ from ..shapes import clean_ring
 # docs/addon_speed.md times at 2.7 ms (benchmarks/addon_speed.py), so a text keeps playing live.
 REFINE_BUDGET = 50_000
 
-__all__ = ["boundary_loops", "bezier_handle_fit", "sample_bezier", "sample_nurbs", "smallest_angles", "with_area",
-           "wound_alike", "refine_level"]
+__all__ = ["boundary_loops", "sample_bezier", "sample_nurbs", "smallest_angles", "with_area", "wound_alike", "refine_level"]
 
 
 def boundary_loops(triangles):
@@ -151,36 +150,6 @@ def sample_bezier(points, left, right, cyclic, resolution=12):
     return curve
 
 
-def bezier_handle_fit(parameters):
-    """Weights that fit a cubic Bezier segment's two handles to points along it, its ends given.
-
-    The segment ``B(t) = b0 P0 + b1 H1 + b2 H2 + b3 P3`` (Bernstein polynomials ``b``) that
-    passes nearest, in least squares, to points ``Q_j`` at ``parameters`` has
-    ``H1 = sum_j w1_j r_j`` and ``H2 = sum_j w2_j r_j`` with ``r_j = Q_j - b0(t_j) P0 - b3(t_j) P3``.
-    Points taken from a segment give its own handles back.
-
-    Parameters
-    ----------
-    parameters : (j,) array_like
-        Two or more distinct parameters in (0, 1).
-
-    Returns
-    -------
-    bernstein : (j, 4) float64 ndarray
-        ``b0 .. b3`` at each parameter.
-    weights : (j, 2) float64 ndarray
-        ``w1`` and ``w2`` of each point.
-    alone : (j, 2) float64 ndarray
-        The same for one handle fitted with the other given: ``H1 = sum_j a1_j (r_j - b2(t_j) H2)``
-        and ``H2 = sum_j a2_j (r_j - b1(t_j) H1)``.
-    """
-    t = np.asarray(parameters, dtype=np.float64)
-    s = 1.0 - t
-    bernstein = np.column_stack([s ** 3, 3 * s * s * t, 3 * s * t * t, t ** 3])
-    handles = bernstein[:, 1:3]
-    return bernstein, np.linalg.solve(handles.T @ handles, handles.T).T, handles / (handles ** 2).sum(axis=0)
-
-
 def sample_nurbs(points, weights, order, cyclic, endpoint=False, bezier=False, resolution=12, per_span=True):
     """Points along a NURBS spline, as Blender draws it.
 
@@ -280,8 +249,7 @@ def _bspline_basis(knots, order, t):
     for degree in range(1, order):
         width_up = knots[degree:-1] - knots[:-degree - 1]
         width_down = knots[degree + 1:] - knots[1:-degree]
-        rising = np.divide(t[:, None] - knots[:-degree - 1], width_up, out=np.zeros((len(t), len(width_up))),
-                           where=width_up > 0)
+        rising = np.divide(t[:, None] - knots[:-degree - 1], width_up, out=np.zeros((len(t), len(width_up))), where=width_up > 0)
         falling = np.divide(knots[degree + 1:] - t[:, None], width_down, out=np.zeros_like(rising),
                             where=width_down > 0)
         values = rising * values[:, :-1] + falling * values[:, 1:]
