@@ -95,6 +95,25 @@ def _install(root):
     return sys.modules[MODULE].shapedeform_addon
 
 
+def checkout_parser(description, rounds=2):
+    """An argument parser with the options every checkout-against-checkout benchmark takes:
+    ``--rounds``, ``--compare-with DIR`` and the worker's hidden ``--worker`` and ``--json``."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--rounds", type=int, default=rounds)
+    parser.add_argument("--compare-with", metavar="DIR")
+    parser.add_argument("--worker", metavar="ROOT", help=argparse.SUPPRESS)
+    parser.add_argument("--json", help=argparse.SUPPRESS)
+    return parser
+
+
+def checkouts(script, compare_with=None):
+    """{name: root} of the checkouts to time: the one holding ``script``, and ``compare_with``."""
+    designs = {"this checkout": os.path.dirname(os.path.dirname(os.path.abspath(script)))}
+    if compare_with:
+        designs["--compare-with"] = os.path.abspath(compare_with)
+    return designs
+
+
 def run_worker(script, root, extra=()):
     """``script --worker root --json OUT extra`` in a Python process of its own with user
     resources of its own (a clean install of ``root``'s extension); the JSON it wrote."""

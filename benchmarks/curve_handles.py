@@ -11,15 +11,13 @@ to go first::
     .venv/bin/python benchmarks/curve_handles.py [--rounds 2] [--compare-with /tmp/before]
 """
 
-import argparse
 import json
-import os
 import sys
 import time
 
 import numpy as np
 
-from addon_speed import _install, in_turns, run_worker
+from addon_speed import _install, checkout_parser, checkouts, in_turns, run_worker
 
 MOVES = 30
 OBJECTS = ("text as a curve (75 letters)", "poly curve (2,000 points)", "grid mesh (40,401 vertices)")
@@ -88,19 +86,12 @@ def worker(root, out):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--compare-with", metavar="DIR")
-    parser.add_argument("--worker", metavar="ROOT", help=argparse.SUPPRESS)
-    parser.add_argument("--json", help=argparse.SUPPRESS)
+    parser = checkout_parser(__doc__.splitlines()[0])
     args = parser.parse_args(argv)
     if args.worker:
         worker(args.worker, args.json)
         return 0
-    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    designs = {"this checkout": here}
-    if args.compare_with:
-        designs["--compare-with"] = os.path.abspath(args.compare_with)
+    designs = checkouts(__file__, args.compare_with)
     times = in_turns(designs, args.rounds, lambda root: run_worker(__file__, root))
     print(f"handle move -> evaluated, {MOVES} moves x {args.rounds} rounds")
     print("| object | checkout | ms: median | 90th percentile |")

@@ -17,15 +17,13 @@ runs, the checkouts taking turns to go first::
         [--bake-frames 0] [--compare-with /tmp/before]
 """
 
-import argparse
 import json
-import os
 import sys
 import time
 
 import numpy as np
 
-from addon_speed import _install, _monkey, in_turns, run_worker
+from addon_speed import _install, checkout_parser, checkouts, _monkey, in_turns, run_worker
 
 FRAMES = range(1, 101)
 MOVES = 40
@@ -86,23 +84,16 @@ def worker(root, rigs, animated, props, bake_frames, out):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = checkout_parser(__doc__.splitlines()[0])
     parser.add_argument("--rigs", type=int, default=20)
     parser.add_argument("--animated", type=int, default=1)
     parser.add_argument("--props", type=int, default=0, help="Empties nobody rigged in the scene")
     parser.add_argument("--bake-frames", type=int, default=0, help="bake the animated rigs over frames 1-N first")
-    parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--compare-with", metavar="DIR")
-    parser.add_argument("--worker", metavar="ROOT", help=argparse.SUPPRESS)
-    parser.add_argument("--json", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
         worker(args.worker, args.rigs, args.animated, args.props, args.bake_frames, args.json)
         return 0
-    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    designs = {"this checkout": here}
-    if args.compare_with:
-        designs["--compare-with"] = os.path.abspath(args.compare_with)
+    designs = checkouts(__file__, args.compare_with)
     extra = ["--rigs", str(args.rigs), "--animated", str(args.animated), "--props", str(args.props),
              "--bake-frames", str(args.bake_frames)]
     times = in_turns(designs, args.rounds, lambda root: run_worker(__file__, root, extra))
