@@ -5,10 +5,12 @@ At a bake's end :func:`fingerprint` digests what its poses were made from: the r
 the handles (the points each holds, what sets their transforms: keys, drivers, the NLA, their
 parenting and constraints), the pins, and the frames baked. ``rig_format.store_bake_source``
 keeps it on the bake's Key. :func:`is_out_of_date` compares the rig as it is now, and keeps its
-answer per rig until something it reads is updated (this module's handlers drop it).
+answer per rig until something it reads is updated (this module's handlers drop it). A render
+names the rigs whose bakes are out of date on the console.
 """
 
 import hashlib
+import sys
 import traceback
 
 import bpy
@@ -17,6 +19,7 @@ from bpy.app.handlers import persistent
 from mathutils import Euler, Matrix, Quaternion, Vector
 
 from ..solver.rigging.plane import affine_inverse
+from ..solver.wording import by_count
 from . import compat, rig_format
 
 
@@ -391,8 +394,26 @@ def _forget_all(*_args):
     forget()
 
 
+@persistent
+def _warn_of_stale_bakes(scene, *_args):
+    """A render starts: name the rigs it plays out-of-date bakes of on the console, which is
+    all a farm's render leaves to read (QA: a key edited after baking rendered the old motion
+    unsaid; the sidebar alone said so)."""
+    try:
+        stale = [obj.name for obj in rig_format.owners(scene) if rig_format.is_baked(obj) and is_out_of_date(obj)]
+    except Exception:  # a render must not fail for a warning
+        traceback.print_exc()
+        return
+    if stale:
+        rigs = ", ".join(repr(name) for name in stale)
+        print(f"Shape Deform: {rigs} {by_count(len(stale), 'plays a bake', 'play bakes')} made before the rig last "
+              "changed, so the render shows the motion as baked: Bake Again to render the rig as it is now",
+              file=sys.stderr, flush=True)
+
+
 _HANDLERS = (("depsgraph_update_post", _forget_updated), ("frame_change_post", _forget_updated),
-             ("load_post", _forget_all), ("undo_post", _forget_all), ("redo_post", _forget_all))
+             ("load_post", _forget_all), ("undo_post", _forget_all), ("redo_post", _forget_all),
+             ("render_init", _warn_of_stale_bakes))
 
 classes = ()
 

@@ -17,6 +17,7 @@ import pytest
 
 from mathutils import Matrix, Vector
 
+import renders
 import rig_checks as checks
 from extension_under_test import ADDON_MODULE
 from test_rig_curve import curve_points, text_curve
@@ -991,6 +992,25 @@ def test_a_bake_says_it_is_out_of_date_once_what_it_was_made_from_changes(addon)
     assert not any(label.startswith("Out of date") for label in drawn(bpy.context, labels=True))
     obj.shapedeform.iterations = 3
     assert not bake_source.is_out_of_date(obj)
+
+
+def test_a_render_names_the_rigs_whose_bakes_are_out_of_date(addon, tmp_path, capfd):
+    """QA: a key edited after baking rendered the motion as baked, and only the sidebar said
+    so; a farm's render leaves its log alone to read."""
+    obj = grid()
+    rig(obj, [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], (0.0, 0.5, 0.0))
+    checks.select_only(obj)
+    assert bpy.ops.shapedeform.bake(frame_start=1, frame_end=4) == {"FINISHED"}
+    renders.camera_over((0.0, 0.0), 3.0)
+    capfd.readouterr()
+    renders.render(tmp_path / "up_to_date.png", size=16)
+    assert "Bake Again" not in capfd.readouterr().err
+    handle = obj.shapedeform.handles[1].object
+    handle.location.y += 0.3
+    handle.keyframe_insert("location", frame=4)
+    bpy.context.view_layer.update()
+    renders.render(tmp_path / "stale.png", size=16)
+    assert "'Grid' plays a bake made before the rig last changed" in capfd.readouterr().err
 
 
 def test_a_bake_is_out_of_date_once_an_armature_constraints_targets_change(addon):
