@@ -398,17 +398,20 @@ def _forget_all(*_args):
 def _warn_of_stale_bakes(scene, *_args):
     """A render starts: name the rigs it plays out-of-date bakes of on the console, which is
     all a farm's render leaves to read (QA: a key edited after baking rendered the old motion
-    unsaid; the sidebar alone said so)."""
+    unsaid; the sidebar alone said so). Only the objects the scene shows are looked through,
+    not a depsgraph: an interactive render calls this from its own thread."""
     try:
-        stale = [obj.name for obj in rig_format.owners(scene) if rig_format.is_baked(obj) and is_out_of_date(obj)]
+        bound = set(rig_format.bound_objects())
+        owners = dict.fromkeys(rig_format.owner_of(obj) for obj in rig_format.shown_objects(scene) if obj in bound)
+        stale = [obj.name for obj in owners if obj is not None and rig_format.is_baked(obj) and is_out_of_date(obj)]
     except Exception:  # a render must not fail for a warning
         traceback.print_exc()
         return
     if stale:
         rigs = ", ".join(repr(name) for name in stale)
-        print(f"Shape Deform: {rigs} {by_count(len(stale), 'plays a bake', 'play bakes')} made before the rig last "
-              "changed, so the render shows the motion as baked: Bake Again to render the rig as it is now",
-              file=sys.stderr, flush=True)
+        made = by_count(len(stale), "plays a bake made before its rig", "play bakes made before their rigs")
+        print(f"Shape Deform: {rigs} {made} last changed, so the render shows the motion as baked: Bake Again to "
+              "render the motion the handles give now", file=sys.stderr, flush=True)
 
 
 _HANDLERS = (("depsgraph_update_post", _forget_updated), ("frame_change_post", _forget_updated),

@@ -216,11 +216,11 @@ def _build(group):
     curves, left, right, point = _map_bezier_handles(b, cage, geometry, bezier)
     handled = b.node("GeometryNodeSwitch", {"Switch": has_bezier, "False": geometry, "True": curves},
                      input_type="GEOMETRY").outputs[0]
-    mapped = _map_points(b, cage, handled, selection)
+    mapped, on_cage = _map_points(b, cage, handled, selection)
     with_handles = _set_bezier_handles(b, cage, mapped, bezier, left, right, point)
     moved = b.node("GeometryNodeSwitch", {"Switch": has_bezier, "False": mapped, "True": with_handles},
                    input_type="GEOMETRY").outputs[0]
-    ordered = _stroke_order(b, cage, moved, given.outputs[ORDER_INPUT], selection)
+    ordered = _stroke_order(b, cage, moved, given.outputs[ORDER_INPUT], selection, on_cage)
     # No cage (deleted by hand, or no faces): the geometry passes unchanged.
     faces = b.node("GeometryNodeAttributeDomainSize", {"Geometry": cage.geometry}, component="MESH")
     has_cage = b.node("FunctionNodeCompare", {"A": faces.outputs["Face Count"], "B": 0},
@@ -518,15 +518,21 @@ def _map_points(b, cage, geometry, selection):
 
     A cage without islands (nearly every rig) takes a branch that never reads them: a Switch
     evaluates only the branch it passes on, and the islands' lookups, run on points of no island
-    too, made a 50,000-vertex mesh's evaluation a fifth to a third slower (docs/addon_speed.md)."""
-    by_place, by_island = (_mapped_points(b, cage, geometry, selection, islands) for islands in (False, True))
-    return b.node("GeometryNodeSwitch", {"Switch": cage.has_islands, "False": by_place, "True": by_island},
-                  input_type="GEOMETRY").outputs[0]
+    too, made a 50,000-vertex mesh's evaluation a fifth to a third slower (docs/addon_speed.md).
+
+    Returns the moved geometry and a field on it: whether each point was found on the cage (by
+    its UV or its index), which a pose that folds nothing keeps it on."""
+    (by_place, on_place), (by_island, on_island) = (_mapped_points(b, cage, geometry, selection, islands)
+                                                    for islands in (False, True))
+    moved, on_cage = (b.node("GeometryNodeSwitch", {"Switch": cage.has_islands, "False": place, "True": island},
+                             input_type=kind).outputs[0]
+                      for place, island, kind in ((by_place, by_island, "GEOMETRY"), (on_place, on_island, "BOOLEAN")))
+    return moved, on_cage
 
 
 def _mapped_points(b, cage, geometry, selection, islands):
-    """:func:`_map_points`'s geometry, the points' islands read with ``islands`` (else every
-    point is looked up by its place, or by its index where that is the cage's point)."""
+    """:func:`_map_points`'s geometry and field, the points' islands read with ``islands`` (else
+    every point is looked up by its place, or by its index where that is the cage's point)."""
     group, position = b.group, cage.position
     shift = b.math("SUBTRACT", cage.posed, position)
     uv = cage.uv(position, islands)
@@ -565,7 +571,7 @@ def _mapped_points(b, cage, geometry, selection, islands):
     for chosen, in_island in searches:
         moved = b.node("GeometryNodeSetPosition", {"Geometry": moved, "Selection": chosen,
                                                    "Position": cage.mapped(position, in_island=in_island)}).outputs[0]
-    return moved
+    return moved, inside
 
 
 class _OwnCagePoint:
@@ -595,7 +601,7 @@ class _OwnCagePoint:
         self.found = b.node("FunctionNodeBooleanMath", [near, listed], operation="AND").outputs[0]
 
 
-def _stroke_order(b, cage, moved, enabled, selection):
+def _stroke_order(b, cage, moved, enabled, selection, on_cage):
     """With ``enabled`` and grease pencil in ``moved``: strokes over a fold drawn last, under one
     first, on the layers the rig deforms (``selection``; the others keep their order: lying at
     rest under a lifted cage, they would all count as under a fold).
@@ -656,7 +662,8 @@ def _stroke_order(b, cage, moved, enabled, selection):
     under_fold = b.node("FunctionNodeBooleanMath", [under_fold, selection], operation="AND").outputs[0]
     # The rays are most of the order's cost (0.8 ms of a still 1,216-point monkey's 2.2 ms a
     # frame). Where the posed cage lies in its plane (nothing folded, or pinned off it), the
-    # layers under and over every point are the plane: its height tells alone.
+    # layer under and over every point the map found on the cage (``on_cage``; a ray from
+    # one off it misses) is the plane: its height tells alone.
     off_plane = b.node("ShaderNodeMath", [sunk], operation="ABSOLUTE").outputs[0]
     cage_lift = b.node("GeometryNodeAttributeStatistic", {"Geometry": posed_cage, "Attribute": off_plane},
                        data_type="FLOAT", domain="POINT").outputs["Max"]
@@ -665,8 +672,9 @@ def _stroke_order(b, cage, moved, enabled, selection):
     lifted = b.node("FunctionNodeCompare", {"A": sunk, "B": b.node("ShaderNodeMath", [margin, -1.0],
                                                                      operation="MULTIPLY").outputs[0]},
                     data_type="FLOAT", operation="LESS_THAN").outputs[0]
-    over_plane = b.node("FunctionNodeBooleanMath", [lifted, selection], operation="AND").outputs[0]
-    under_plane = b.node("FunctionNodeBooleanMath", [behind, selection], operation="AND").outputs[0]
+    rigged_on_cage = b.node("FunctionNodeBooleanMath", [selection, on_cage], operation="AND").outputs[0]
+    over_plane = b.node("FunctionNodeBooleanMath", [lifted, rigged_on_cage], operation="AND").outputs[0]
+    under_plane = b.node("FunctionNodeBooleanMath", [behind, rigged_on_cage], operation="AND").outputs[0]
     weights = [b.node("ShaderNodeMath", [_stroke_share(b, over), _stroke_share(b, under)],
                       operation="SUBTRACT").outputs[0] for over, under in ((over_fold, under_fold), (over_plane, under_plane))]
     # A Switch given one value evaluates only the field it passes on: no ray is cast then.

@@ -1010,7 +1010,7 @@ def test_a_render_names_the_rigs_whose_bakes_are_out_of_date(addon, tmp_path, ca
     handle.keyframe_insert("location", frame=4)
     bpy.context.view_layer.update()
     renders.render(tmp_path / "stale.png", size=16)
-    assert "'Grid' plays a bake made before the rig last changed" in capfd.readouterr().err
+    assert "'Grid' plays a bake made before its rig last changed" in capfd.readouterr().err
 
 
 def test_a_bake_is_out_of_date_once_an_armature_constraints_targets_change(addon):

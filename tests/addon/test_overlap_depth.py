@@ -324,6 +324,29 @@ def test_grease_pencil_strokes_over_a_fold_draw_after_the_rest(addon):
     assert list(drawn_order(figure, "Fills")) == [body, arm, eye]
 
 
+def test_strokes_drawn_off_the_plane_beside_the_shape_keep_their_order_when_nothing_folds(addon):
+    """Review: strokes drawn after Bind beside the figure, off its plane (one in front, one
+    behind), counted as over and under a fold in a pose that folds nothing, and split the
+    layer in three (losing its groups and other drawings while the stroke is moved) where
+    Stroke Order's rays, missing the cage, had found nothing."""
+    figure, tip = figure_seen_from_the_front()
+    drawing = figure.data.layers["Fills"].current_frame().drawing
+    first = len(drawing.attributes["position"].data)
+    drawing.add_strokes([4, 4])
+    square = [(2.5, -0.2), (2.9, -0.2), (2.9, 0.2), (2.5, 0.2)]
+    beside = np.array([(x, y, z) for y in (-0.05, 0.05) for x, z in square], np.float32)
+    positions = np.empty(3 * len(drawing.attributes["position"].data), np.float32)
+    drawing.attributes["position"].data.foreach_get("vector", positions)
+    positions[3 * first:] = beside.ravel()
+    drawing.attributes["position"].data.foreach_set("vector", positions)
+    number_strokes(figure)
+    tip.location.z += 0.1  # the arm raised a little: nothing folds
+    bpy.context.view_layer.update()
+    geometry = evaluated_geometry(figure)  # owns the drawings: keep it while reading
+    assert [layer.name for layer in geometry.grease_pencil.layers] == ["Fills"]
+    assert list(drawn_order(figure, "Fills")) == list(range(5))
+
+
 def test_an_eye_mostly_under_a_folded_arm_stays_on_the_body(addon, tmp_path):
     """The arm folded over most of the eye drawn on the body: the eye is under a fold, but on the
     body, which has not sunk behind its plane; it stays drawn after the body, and its part the
