@@ -401,9 +401,8 @@ def _warn_of_stale_bakes(scene, *_args):
     unsaid; the sidebar alone said so). Only the objects the scene shows are looked through,
     not a depsgraph: an interactive render calls this from its own thread."""
     try:
-        bound = set(rig_format.bound_objects())
-        owners = dict.fromkeys(rig_format.owner_of(obj) for obj in rig_format.shown_objects(scene) if obj in bound)
-        stale = [obj.name for obj in owners if obj is not None and rig_format.is_baked(obj) and is_out_of_date(obj)]
+        stale = [obj.name for obj in rig_format.owners(scene, evaluated=False)
+                 if rig_format.is_baked(obj) and is_out_of_date(obj)]
     except Exception:  # a render must not fail for a warning
         traceback.print_exc()
         return

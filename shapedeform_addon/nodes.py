@@ -675,8 +675,8 @@ def _stroke_order(b, cage, moved, enabled, selection, on_cage):
     rigged_on_cage = b.node("FunctionNodeBooleanMath", [selection, on_cage], operation="AND").outputs[0]
     over_plane = b.node("FunctionNodeBooleanMath", [lifted, rigged_on_cage], operation="AND").outputs[0]
     under_plane = b.node("FunctionNodeBooleanMath", [behind, rigged_on_cage], operation="AND").outputs[0]
-    weights = [b.node("ShaderNodeMath", [_stroke_share(b, over), _stroke_share(b, under)],
-                      operation="SUBTRACT").outputs[0] for over, under in ((over_fold, under_fold), (over_plane, under_plane))]
+    weights = [b.node("ShaderNodeMath", [_stroke_share(b, over), _stroke_share(b, under)], operation="SUBTRACT").outputs[0]
+               for over, under in ((over_fold, under_fold), (over_plane, under_plane))]
     # A Switch given one value evaluates only the field it passes on: no ray is cast then.
     sort_weight = b.node("GeometryNodeSwitch", {"Switch": flat, "False": weights[0], "True": weights[1]},
                          input_type="FLOAT").outputs[0]

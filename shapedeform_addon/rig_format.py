@@ -834,7 +834,7 @@ def bake_source(cage):
     return key[BAKE_SOURCE], np.asarray(key[BAKE_SOURCE_NUMBERS], dtype=np.float64)
 
 
-def owners(scene, depsgraph=None):
+def owners(scene, depsgraph=None, evaluated=True):
     """Rig owners that ``scene`` shows (:func:`shown_objects`: a character shown in a shot by a
     Collection Instance, in a set that is itself instanced, or in a Background Set too), and the
     owners of the duplicates following a rig it shows (a copy moved to another scene poses there
@@ -844,7 +844,8 @@ def owners(scene, depsgraph=None):
 
     Rigs the scene shows by other ways (a Geometry Nodes *Collection Info* node, particles
     rendering a collection) are found in ``depsgraph`` (by default the context view layer's,
-    when it is ``scene``'s): those it evaluates are shown.
+    when it is ``scene``'s): those it evaluates are shown; not with ``evaluated`` False (a caller
+    on a render's thread, where the context's depsgraph is not to be read).
     """
     found = []
     bound = set(bound_objects())
@@ -854,7 +855,8 @@ def owners(scene, depsgraph=None):
         owner = owner_of(obj)
         if _posable_owner(owner):
             found.append(owner)
-    found += _evaluated_owners(scene, depsgraph, set(found))
+    if evaluated:
+        found += _evaluated_owners(scene, depsgraph, set(found))
     return list(dict.fromkeys(found))  # shown twice, posed once
 
 

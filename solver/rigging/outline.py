@@ -17,7 +17,8 @@ from ..shapes import clean_ring
 # docs/addon_speed.md times at 2.7 ms (benchmarks/addon_speed.py), so a text keeps playing live.
 REFINE_BUDGET = 50_000
 
-__all__ = ["boundary_loops", "sample_bezier", "sample_nurbs", "smallest_angles", "with_area", "wound_alike", "refine_level"]
+__all__ = ["boundary_loops", "sample_bezier", "sample_nurbs", "smallest_angles", "with_area", "wound_alike",
+           "refine_level"]
 
 
 def boundary_loops(triangles):
@@ -249,7 +250,8 @@ def _bspline_basis(knots, order, t):
     for degree in range(1, order):
         width_up = knots[degree:-1] - knots[:-degree - 1]
         width_down = knots[degree + 1:] - knots[1:-degree]
-        rising = np.divide(t[:, None] - knots[:-degree - 1], width_up, out=np.zeros((len(t), len(width_up))), where=width_up > 0)
+        rising = np.divide(t[:, None] - knots[:-degree - 1], width_up, out=np.zeros((len(t), len(width_up))),
+                           where=width_up > 0)
         falling = np.divide(knots[degree + 1:] - t[:, None], width_down, out=np.zeros_like(rising),
                             where=width_down > 0)
         values = rising * values[:, :-1] + falling * values[:, 1:]
